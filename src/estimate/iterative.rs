@@ -1,0 +1,237 @@
+//! The paper's iterative estimator (Teoh et al. 2022, Sections 3-5; SPEC section 2).
+//!
+//! Legend: `z[i]` depth of corner P(i+1), mm; `e[j]` condition error of edge l(j+1), mm;
+//! `k` the updating coefficient (gain); `e_c` the sum of absolute depth changes, mm.
+//!
+//! 1. z_i(0) = z0 for every corner.
+//! 2. P_i = (x_n,i · z_i, y_n,i · z_i, z_i)                                  (Eq. 6)
+//! 3. e_j = L_j − |P_a − P_b| for the six edges, L = l or √2·l        (Eqs. 7, 10, 11)
+//! 4. z_i(n) = z_i(n−1) + k · mean(e over the three edges at P_i)            (Eq. 12)
+//!    — a simultaneous update: all four use the errors of iterate n−1.
+//! 5. e_c(n) = Σ_i |z_i(n) − z_i(n−1)|; converged when e_c ≤ e_d.           (Eq. 13)
+//!
+//! The update moves both ends of an edge by the same amount, so it can only change an
+//! edge's length through the perspective spread of the rays; it has no term that turns
+//! the square. Tilted markers therefore converge slowly or not at all (see
+//! `docs/paper-reproduction.md`); `depth-newton` solves the same equations properly.
+
+use super::TraceStep;
+use crate::geometry::{
+    frames::{CameraPoint, NormalizedPoint},
+    marker::{EDGES, INCIDENT_EDGES, Marker},
+};
+
+/// The paper method's parameters (SPEC section 2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PaperParams {
+    /// z0, the starting depth of every corner, mm.
+    pub initial_z_mm: f64,
+    /// k, the updating coefficient of Eq. 12.
+    pub gain: f64,
+    /// e_d, the convergence threshold on e_c (Eq. 13), mm.
+    pub tolerance_mm: f64,
+    /// n_max.
+    pub max_iterations: u32,
+    /// Record z and e_c at every iteration.
+    pub trace: bool,
+}
+
+/// Where the iteration stopped.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthIteration {
+    /// Final depths z1..z4, mm.
+    pub z_mm: [f64; 4],
+    /// e_c ≤ e_d was reached within n_max.
+    pub converged: bool,
+    /// Updates applied.
+    pub iterations: u32,
+    /// e_c of the last update, mm; `None` when no update was applied.
+    pub convergence_error_mm: Option<f64>,
+    /// z and e_c per iteration, when asked for.
+    pub trace: Option<Vec<TraceStep>>,
+}
+
+/// Camera-frame corners on their rays at depths `z_mm` (Eq. 6).
+pub fn corners_at_depths(rays: &[NormalizedPoint; 4], z_mm: &[f64; 4]) -> [CameraPoint; 4] {
+    [0, 1, 2, 3].map(|i| rays[i].at_depth(z_mm[i]))
+}
+
+/// Condition errors e1..e6 = known − computed length, mm (Eqs. 7, 10, 11).
+pub fn side_errors_mm(rays: &[NormalizedPoint; 4], z_mm: &[f64; 4], marker: &Marker) -> [f64; 6] {
+    let p = corners_at_depths(rays, z_mm);
+    EDGES.map(|edge| marker.edge_length_mm(&edge) - (p[edge.a].0 - p[edge.b].0).norm())
+}
+
+/// One simultaneous update of all four depths (Eq. 12).
+fn updated_depths(z_mm: &[f64; 4], e: &[f64; 6], gain: f64) -> [f64; 4] {
+    [0, 1, 2, 3].map(|i| {
+        let [j1, j2, j3] = INCIDENT_EDGES[i];
+        z_mm[i] + gain * (e[j1] + e[j2] + e[j3]) / 3.0
+    })
+}
+
+/// e_c = Σ |z_i(n) − z_i(n−1)| (Eq. 13).
+fn convergence_error_mm(z_new: &[f64; 4], z_old: &[f64; 4]) -> f64 {
+    z_new.iter().zip(z_old).map(|(a, b)| (a - b).abs()).sum()
+}
+
+/// Runs the iteration of SPEC section 2 on the four rays P1..P4.
+///
+/// Non-convergence is a result: `converged` is false and the last iterate is returned.
+/// Should an update overflow (possible only with large gains and many iterations), the
+/// iteration stops at the last finite iterate, unconverged.
+pub fn iterate(
+    rays: &[NormalizedPoint; 4],
+    marker: &Marker,
+    params: &PaperParams,
+) -> DepthIteration {
+    let mut z = [params.initial_z_mm; 4];
+    let mut trace = params.trace.then(Vec::new);
+    let mut last_e_c = None;
+    let mut iterations = 0;
+    for n in 1..=params.max_iterations {
+        let e = side_errors_mm(rays, &z, marker);
+        let z_next = updated_depths(&z, &e, params.gain);
+        let e_c = convergence_error_mm(&z_next, &z);
+        if !e_c.is_finite() {
+            break;
+        }
+        z = z_next;
+        iterations = n;
+        last_e_c = Some(e_c);
+        if let Some(steps) = trace.as_mut() {
+            steps.push(TraceStep {
+                iteration: n,
+                z_mm: z,
+                convergence_error_mm: e_c,
+            });
+        }
+        if e_c <= params.tolerance_mm {
+            return DepthIteration {
+                z_mm: z,
+                converged: true,
+                iterations,
+                convergence_error_mm: last_e_c,
+                trace,
+            };
+        }
+    }
+    DepthIteration {
+        z_mm: z,
+        converged: false,
+        iterations,
+        convergence_error_mm: last_e_c,
+        trace,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{euler::EulerXyz, frames::MarkerToCamera};
+    use nalgebra::Vector3;
+
+    fn rays_for(marker: &Marker, pose: &MarkerToCamera) -> [NormalizedPoint; 4] {
+        marker
+            .object_points()
+            .map(|m| pose.transform(&m).normalized().expect("in front"))
+    }
+
+    fn params(gain: f64) -> PaperParams {
+        PaperParams {
+            initial_z_mm: 450.0,
+            gain,
+            tolerance_mm: 1.0,
+            max_iterations: 30,
+            trace: true,
+        }
+    }
+
+    #[test]
+    fn side_errors_vanish_at_the_true_depths() {
+        let marker = Marker::try_new(50.0).expect("valid size");
+        let pose = MarkerToCamera::new(
+            EulerXyz::from_degrees(10.0, 5.0, 20.0).to_rotation(),
+            Vector3::new(60.0, -50.0, 300.0),
+        );
+        let rays = rays_for(&marker, &pose);
+        let z = marker.object_points().map(|m| pose.transform(&m).0.z);
+        for (j, e) in side_errors_mm(&rays, &z, &marker).iter().enumerate() {
+            assert!(e.abs() < 1e-12, "e{} = {e} mm", j + 1);
+        }
+    }
+
+    #[test]
+    fn first_update_follows_eq_12_by_hand() {
+        // Fronto-parallel marker at 500 mm seen from z0 = 450: every computed length is
+        // 450/500 of the true one, so e_j = L_j · (1 − 0.9) and P1's update is
+        // k · (l·0.1 + l·0.1 + √2·l·0.1) / 3.
+        let marker = Marker::try_new(50.0).expect("valid size");
+        let pose = MarkerToCamera::new(
+            EulerXyz::new(0.0, 0.0, 0.0).to_rotation(),
+            Vector3::new(10.0, 20.0, 500.0),
+        );
+        let rays = rays_for(&marker, &pose);
+        let out = iterate(
+            &rays,
+            &marker,
+            &PaperParams {
+                max_iterations: 1,
+                ..params(1.0)
+            },
+        );
+        let step = 5.0 * (2.0 + std::f64::consts::SQRT_2) / 3.0;
+        for (i, z) in out.z_mm.iter().enumerate() {
+            assert!((z - (450.0 + step)).abs() < 1e-9, "z{} = {z} mm", i + 1);
+        }
+        assert!((out.convergence_error_mm.expect("one step") - 4.0 * step).abs() < 1e-9);
+        assert_eq!(out.iterations, 1);
+        assert!(!out.converged);
+    }
+
+    #[test]
+    fn converges_on_a_fronto_parallel_marker_and_traces_every_step() {
+        let marker = Marker::try_new(50.0).expect("valid size");
+        let pose = MarkerToCamera::new(
+            EulerXyz::new(0.0, 0.0, 0.0).to_rotation(),
+            Vector3::new(0.0, 0.0, 300.0),
+        );
+        let rays = rays_for(&marker, &pose);
+        let out = iterate(&rays, &marker, &params(1.0));
+        assert!(out.converged, "{out:?}");
+        for z in out.z_mm {
+            assert!((z - 300.0).abs() < 5.0, "z = {z} mm");
+        }
+        let trace = out.trace.expect("trace requested");
+        assert_eq!(trace.len(), out.iterations as usize);
+        assert_eq!(trace.last().map(|s| s.z_mm), Some(out.z_mm));
+        assert!(
+            trace
+                .last()
+                .map(|s| s.convergence_error_mm <= 1.0)
+                .unwrap_or(false)
+        );
+    }
+
+    #[test]
+    fn reports_non_convergence_with_the_last_iterate() {
+        let marker = Marker::try_new(50.0).expect("valid size");
+        let pose = MarkerToCamera::new(
+            EulerXyz::from_degrees(60.0, 0.0, 0.0).to_rotation(),
+            Vector3::new(80.0, -90.0, 100.0),
+        );
+        let rays = rays_for(&marker, &pose);
+        let out = iterate(
+            &rays,
+            &marker,
+            &PaperParams {
+                trace: false,
+                ..params(2.0)
+            },
+        );
+        assert!(!out.converged);
+        assert_eq!(out.iterations, 30);
+        assert!(out.z_mm.iter().all(|z| z.is_finite()));
+        assert!(out.trace.is_none());
+    }
+}

@@ -1,0 +1,575 @@
+//! Pose of a square marker from its four image corners: three methods behind one call.
+//!
+//! - [`Method::Paper`]: the paper's iteration as printed (SPEC section 2, [`iterative`]),
+//!   then a rigid (Kabsch) fit of the model onto the iterated corners ([`fit`]).
+//! - [`Method::DepthNewton`]: the same unknowns and residuals solved by Levenberg-Marquardt
+//!   ([`depth_newton`]), then the same fit.
+//! - [`Method::Reprojection`] (default): both IPPE candidates of the planar ambiguity
+//!   ([`ippe`]), each refined on pixel reprojection error ([`refine`]); the better is
+//!   reported with the other's error, and a covariance for a given corner noise.
+//!
+//! Entry points: [`estimate_pose`] for validated image corners, [`estimate_from_rays`] for
+//! corners already normalised.
+
+pub mod depth_newton;
+pub mod fit;
+pub mod ippe;
+pub mod iterative;
+pub mod refine;
+
+use crate::geometry::{
+    camera::{Camera, CameraError, ImageUnit},
+    euler::angle_between,
+    frames::{CameraPoint, MarkerToCamera, NormalizedPoint},
+    marker::Marker,
+    quad::ImageQuad,
+};
+use nalgebra::{Matrix6, Vector3};
+use thiserror::Error;
+
+/// Default starting depth of the paper method, mm (the paper's z_initial, Section 8).
+pub const DEFAULT_INITIAL_Z_MM: f64 = 450.0;
+/// Default gain k of Eq. 12.
+pub const DEFAULT_GAIN: f64 = 1.0;
+/// Default e_d of Eq. 13, mm.
+pub const DEFAULT_TOLERANCE_MM: f64 = 1.0;
+/// Default iteration limit (the paper's n_max).
+pub const DEFAULT_MAX_ITERATIONS: u32 = 30;
+/// Default corner noise for the covariance, px per coordinate.
+pub const DEFAULT_CORNER_SIGMA_PX: f64 = 0.5;
+/// Upper bound on `max_iterations`, so that no request can keep a worker busy for long
+/// (10 000 paper iterations take about 0.3 ms).
+pub const MAX_ITERATIONS_LIMIT: u32 = 10_000;
+/// Largest accepted starting depth, mm (10 km).
+pub const MAX_INITIAL_Z_MM: f64 = 1e7;
+/// Largest accepted gain.
+pub const MAX_GAIN: f64 = 10.0;
+/// Largest accepted tolerance, mm.
+pub const MAX_TOLERANCE_MM: f64 = 1e6;
+/// Largest accepted corner noise, px.
+pub const MAX_CORNER_SIGMA_PX: f64 = 100.0;
+
+/// `ambiguity.ambiguous` is set when best RMS / alternative RMS reaches this ratio (and the
+/// alternative is a distinct pose). Chosen from `cargo run --release --example
+/// ambiguity_study`; see `docs/accuracy.md`.
+pub const AMBIGUITY_RATIO_THRESHOLD: f64 = 0.6;
+
+/// Two refined candidates whose rotations differ by less than this are one solution: picking
+/// either costs less than the noise does.
+pub const DISTINCT_ROTATION_DEG: f64 = 0.1;
+
+/// A reprojection RMS above this multiple of the stated corner noise raises
+/// [`Warning::HighReprojectionError`].
+pub const HIGH_RMS_SIGMAS: f64 = 4.0;
+
+/// How the pose is computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// The paper's iteration (SPEC section 2).
+    Paper,
+    /// The paper's equations solved by Levenberg-Marquardt.
+    DepthNewton,
+    /// IPPE plus Levenberg-Marquardt on pixel error (the default).
+    #[default]
+    Reprojection,
+}
+
+impl Method {
+    /// The wire name: "paper", "depth-newton", "reprojection".
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Method::Paper => "paper",
+            Method::DepthNewton => "depth-newton",
+            Method::Reprojection => "reprojection",
+        }
+    }
+}
+
+/// Which solver parameter is at fault.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolverParam {
+    /// `initial_z_mm`.
+    InitialZMm,
+    /// `gain`.
+    Gain,
+    /// `tolerance_mm`.
+    ToleranceMm,
+    /// `max_iterations`.
+    MaxIterations,
+    /// `corner_sigma_px`.
+    CornerSigmaPx,
+}
+
+/// Solver settings. Build with [`EstimatorParams::default`] and the `with_*` setters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimatorParams {
+    /// Which method.
+    pub method: Method,
+    /// Starting depth, mm: z0 for `paper` (default [`DEFAULT_INITIAL_Z_MM`]); for
+    /// `depth-newton` the similar-triangles depth when `None`; unused by `reprojection`.
+    pub initial_z_mm: Option<f64>,
+    /// k of Eq. 12 (`paper` only).
+    pub gain: f64,
+    /// e_d of Eq. 13, mm (`paper` only).
+    pub tolerance_mm: f64,
+    /// Iteration limit of every method.
+    pub max_iterations: u32,
+    /// Record the per-iteration trace.
+    pub trace: bool,
+    /// Corner noise σ per coordinate, px, for the covariance (`reprojection` only).
+    pub corner_sigma_px: f64,
+}
+
+impl Default for EstimatorParams {
+    fn default() -> Self {
+        Self {
+            method: Method::default(),
+            initial_z_mm: None,
+            gain: DEFAULT_GAIN,
+            tolerance_mm: DEFAULT_TOLERANCE_MM,
+            max_iterations: DEFAULT_MAX_ITERATIONS,
+            trace: false,
+            corner_sigma_px: DEFAULT_CORNER_SIGMA_PX,
+        }
+    }
+}
+
+impl EstimatorParams {
+    /// With this method.
+    pub fn with_method(self, method: Method) -> Self {
+        Self { method, ..self }
+    }
+    /// With this starting depth, mm.
+    pub fn with_initial_z_mm(self, initial_z_mm: f64) -> Self {
+        Self {
+            initial_z_mm: Some(initial_z_mm),
+            ..self
+        }
+    }
+    /// With this gain.
+    pub fn with_gain(self, gain: f64) -> Self {
+        Self { gain, ..self }
+    }
+    /// With this tolerance, mm.
+    pub fn with_tolerance_mm(self, tolerance_mm: f64) -> Self {
+        Self {
+            tolerance_mm,
+            ..self
+        }
+    }
+    /// With this iteration limit.
+    pub fn with_max_iterations(self, max_iterations: u32) -> Self {
+        Self {
+            max_iterations,
+            ..self
+        }
+    }
+    /// With or without the trace.
+    pub fn with_trace(self, trace: bool) -> Self {
+        Self { trace, ..self }
+    }
+    /// With this corner noise, px.
+    pub fn with_corner_sigma_px(self, corner_sigma_px: f64) -> Self {
+        Self {
+            corner_sigma_px,
+            ..self
+        }
+    }
+
+    /// Checks every parameter against its range.
+    ///
+    /// # Errors
+    /// [`EstimateError::ParamOutOfRange`] for the first parameter outside its range.
+    pub fn validate(&self) -> Result<(), EstimateError> {
+        let in_range = |value: f64, param: SolverParam, min_exclusive: f64, max: f64| {
+            if value.is_finite() && value > min_exclusive && value <= max {
+                Ok(())
+            } else {
+                Err(EstimateError::ParamOutOfRange {
+                    param,
+                    value,
+                    min_exclusive,
+                    max,
+                })
+            }
+        };
+        if let Some(z) = self.initial_z_mm {
+            in_range(z, SolverParam::InitialZMm, 0.0, MAX_INITIAL_Z_MM)?;
+        }
+        in_range(self.gain, SolverParam::Gain, 0.0, MAX_GAIN)?;
+        in_range(
+            self.tolerance_mm,
+            SolverParam::ToleranceMm,
+            0.0,
+            MAX_TOLERANCE_MM,
+        )?;
+        in_range(
+            f64::from(self.max_iterations),
+            SolverParam::MaxIterations,
+            0.0,
+            f64::from(MAX_ITERATIONS_LIMIT),
+        )?;
+        in_range(
+            self.corner_sigma_px,
+            SolverParam::CornerSigmaPx,
+            0.0,
+            MAX_CORNER_SIGMA_PX,
+        )
+    }
+}
+
+/// Why no pose could be produced.
+#[derive(Debug, Clone, Copy, PartialEq, Error)]
+pub enum EstimateError {
+    /// A solver parameter is outside its range (or not finite): refused rather than run.
+    #[error("solver parameter {param:?} = {value} is outside ({min_exclusive}, {max}]")]
+    ParamOutOfRange {
+        /// The parameter.
+        param: SolverParam,
+        /// The value given.
+        value: f64,
+        /// Values must be greater than this.
+        min_exclusive: f64,
+        /// Values must be at most this.
+        max: f64,
+    },
+    /// A corner could not be undistorted: the lens model has no inverse there.
+    #[error("corner {index}: {source}")]
+    Undistortion {
+        /// The corner, as an index into the caller's list.
+        index: usize,
+        /// What the camera model said.
+        source: CameraError,
+    },
+    /// The corners admit no pose: the closed-form step or the rigid fit is degenerate (for
+    /// `paper`, the iteration collapsed the corners onto a line or a point).
+    #[error("no pose fits these corners ({reason})")]
+    NoSolution {
+        /// Which step failed.
+        reason: &'static str,
+    },
+}
+
+/// One iteration of the trace: corner depths and e_c (Σ|Δz|) after the update.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraceStep {
+    /// 1-based iteration number.
+    pub iteration: u32,
+    /// z1..z4 after this iteration, mm.
+    pub z_mm: [f64; 4],
+    /// Σ_i |z_i(n) − z_i(n−1)|, mm (Eq. 13).
+    pub convergence_error_mm: f64,
+}
+
+/// The other candidate of the planar ambiguity, after its own refinement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ambiguity {
+    /// Its reprojection RMS, image units.
+    pub alternative_rms: f64,
+    /// Best RMS / alternative RMS, in [0, 1]; near 1 when the two cannot be told apart.
+    pub ratio: f64,
+    /// Angle between the two rotations, radians.
+    pub rotation_difference_rad: f64,
+    /// Ratio ≥ [`AMBIGUITY_RATIO_THRESHOLD`] and the rotations differ by more than
+    /// [`DISTINCT_ROTATION_DEG`].
+    pub ambiguous: bool,
+}
+
+/// Conditions a caller should know about before trusting the pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Warning {
+    /// The method stopped at its iteration limit.
+    NotConverged,
+    /// The two poses of the planar ambiguity fit about equally well.
+    PoseAmbiguous,
+    /// A solved corner lies at or behind the camera: the pose is not physical.
+    BehindCamera,
+    /// The reprojection RMS exceeds [`HIGH_RMS_SIGMAS`] × the stated corner noise.
+    HighReprojectionError,
+}
+
+/// How the estimate was reached and how far to trust it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Diagnostics {
+    /// The method used.
+    pub method: Method,
+    /// Whether the method met its convergence criterion.
+    pub converged: bool,
+    /// Iterations run.
+    pub iterations: u32,
+    /// The last Σ|Δz| (e_c), mm (`paper`, `depth-newton`).
+    pub convergence_error_mm: Option<f64>,
+    /// e1..e6 = known − computed edge length at the final depths, mm (`paper`,
+    /// `depth-newton`).
+    pub side_residuals_mm: Option<[f64; 6]>,
+    /// RMS corner reprojection error of the reported pose, image units; `None` when a
+    /// corner of the pose is at or behind the camera.
+    pub reprojection_rms: Option<f64>,
+    /// The planar ambiguity (`reprojection`).
+    pub ambiguity: Option<Ambiguity>,
+    /// 6×6 covariance of (rx, ry, rz rad; x, y, z mm of the centre) for the stated corner
+    /// noise (`reprojection` with a pixel camera).
+    pub covariance: Option<Matrix6<f64>>,
+    /// Per-iteration trace, when asked for.
+    pub trace: Option<Vec<TraceStep>>,
+    /// What deserves a caller's attention.
+    pub warnings: Vec<Warning>,
+}
+
+/// A pose and how it was found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseEstimate {
+    /// Marker-to-camera pose; its translation is P2 (the marker origin), mm.
+    pub pose: MarkerToCamera,
+    /// The marker centre in the camera frame, mm.
+    pub centre_mm: Vector3<f64>,
+    /// Corners P1..P4 in the camera frame, mm: as the iteration left them (`paper`,
+    /// `depth-newton`) or the model under the pose (`reprojection`).
+    pub corners_cam: [CameraPoint; 4],
+    /// Diagnostics.
+    pub diagnostics: Diagnostics,
+}
+
+/// Estimates the marker's pose from four validated image corners.
+///
+/// # Errors
+/// [`EstimateError::ParamOutOfRange`] for bad parameters, [`EstimateError::Undistortion`]
+/// when a corner cannot be undistorted, [`EstimateError::NoSolution`] when no pose fits.
+/// Non-convergence is not an error: see [`Diagnostics::converged`].
+///
+/// # Example
+/// ```
+/// use nalgebra::Vector3;
+/// use qrpose::estimate::{estimate_pose, EstimatorParams};
+/// use qrpose::geometry::{camera::Camera, euler::EulerXyz, frames::MarkerToCamera,
+///                        marker::{CornerOrder, Marker}, quad::ImageQuad};
+///
+/// let camera = Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5)?;
+/// let marker = Marker::try_new(50.0)?;
+/// let truth = MarkerToCamera::new(EulerXyz::from_degrees(20.0, -10.0, 5.0).to_rotation(),
+///                                 Vector3::new(60.0, -50.0, 400.0));
+/// let corners = marker.object_points().map(|m| camera.project(&truth.transform(&m)).unwrap());
+/// let quad = ImageQuad::try_new(corners, CornerOrder::Paper)?;
+/// let estimate = estimate_pose(&quad, &camera, &marker, &EstimatorParams::default())?;
+/// assert!((estimate.pose.translation_mm() - truth.translation_mm()).norm() < 1e-6);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn estimate_pose(
+    quad: &ImageQuad,
+    camera: &Camera,
+    marker: &Marker,
+    params: &EstimatorParams,
+) -> Result<PoseEstimate, EstimateError> {
+    params.validate()?;
+    let mut rays = [NormalizedPoint::new(0.0, 0.0); 4];
+    for (i, p) in quad.paper_order().iter().enumerate() {
+        rays[i] = camera
+            .normalize(p)
+            .map_err(|source| EstimateError::Undistortion {
+                index: quad.order().input_index(i),
+                source,
+            })?;
+    }
+    estimate_from_rays(&rays, camera, marker, params)
+}
+
+/// Estimates the pose from undistorted normalised corners P1..P4. The camera supplies the
+/// pixel scale of the reprojection error; `params` must already be valid.
+///
+/// # Errors
+/// [`EstimateError::NoSolution`] when no pose fits.
+pub fn estimate_from_rays(
+    rays: &[NormalizedPoint; 4],
+    camera: &Camera,
+    marker: &Marker,
+    params: &EstimatorParams,
+) -> Result<PoseEstimate, EstimateError> {
+    let mut estimate = match params.method {
+        Method::Paper => {
+            let paper = iterative::PaperParams {
+                initial_z_mm: params.initial_z_mm.unwrap_or(DEFAULT_INITIAL_Z_MM),
+                gain: params.gain,
+                tolerance_mm: params.tolerance_mm,
+                max_iterations: params.max_iterations,
+                trace: params.trace,
+            };
+            let it = iterative::iterate(rays, marker, &paper);
+            from_depths(
+                rays,
+                camera,
+                marker,
+                Method::Paper,
+                it.z_mm,
+                it.converged,
+                it.iterations,
+                it.convergence_error_mm,
+                it.trace,
+            )?
+        }
+        Method::DepthNewton => {
+            let dn = depth_newton::DepthNewtonParams {
+                initial_z_mm: params.initial_z_mm,
+                max_iterations: params.max_iterations,
+                trace: params.trace,
+            };
+            let s = depth_newton::solve(rays, marker, &dn);
+            from_depths(
+                rays,
+                camera,
+                marker,
+                Method::DepthNewton,
+                s.z_mm,
+                s.converged,
+                s.iterations,
+                s.convergence_error_mm,
+                s.trace,
+            )?
+        }
+        Method::Reprojection => by_reprojection(rays, camera, marker, params)?,
+    };
+    let d = &mut estimate.diagnostics;
+    if !d.converged {
+        d.warnings.push(Warning::NotConverged);
+    }
+    if d.ambiguity.is_some_and(|a| a.ambiguous) {
+        d.warnings.push(Warning::PoseAmbiguous);
+    }
+    let behind = estimate.corners_cam.iter().any(|p| !(p.0.z > 0.0));
+    if behind || d.reprojection_rms.is_none() {
+        d.warnings.push(Warning::BehindCamera);
+    }
+    let sigma = match camera.unit() {
+        ImageUnit::Pixel => Some(params.corner_sigma_px),
+        ImageUnit::ImagePlaneMm => None,
+    };
+    if let (Some(rms), Some(sigma)) = (d.reprojection_rms, sigma) {
+        if rms > HIGH_RMS_SIGMAS * sigma {
+            d.warnings.push(Warning::HighReprojectionError);
+        }
+    }
+    Ok(estimate)
+}
+
+/// Builds the estimate of the depth-based methods: corners from Eq. 6 and a rigid fit.
+#[allow(clippy::too_many_arguments)]
+fn from_depths(
+    rays: &[NormalizedPoint; 4],
+    camera: &Camera,
+    marker: &Marker,
+    method: Method,
+    z_mm: [f64; 4],
+    converged: bool,
+    iterations: u32,
+    convergence_error_mm: Option<f64>,
+    trace: Option<Vec<TraceStep>>,
+) -> Result<PoseEstimate, EstimateError> {
+    let corners_cam = iterative::corners_at_depths(rays, &z_mm);
+    let pose = fit::fit_rigid(marker, &corners_cam).ok_or(EstimateError::NoSolution {
+        reason: "the solved corners are collinear",
+    })?;
+    let centre_mm = pose.transform(&marker.centre()).0.coords;
+    Ok(PoseEstimate {
+        pose,
+        centre_mm,
+        corners_cam,
+        diagnostics: Diagnostics {
+            method,
+            converged,
+            iterations,
+            convergence_error_mm,
+            side_residuals_mm: Some(iterative::side_errors_mm(rays, &z_mm, marker)),
+            reprojection_rms: fit::reprojection_rms(camera, marker, &pose, rays),
+            ambiguity: None,
+            covariance: None,
+            trace,
+            warnings: Vec::new(),
+        },
+    })
+}
+
+/// IPPE's two candidates, each refined; the better reported, the other in `ambiguity`.
+fn by_reprojection(
+    rays: &[NormalizedPoint; 4],
+    camera: &Camera,
+    marker: &Marker,
+    params: &EstimatorParams,
+) -> Result<PoseEstimate, EstimateError> {
+    let model = ippe::centred_model(marker);
+    let scale = refine::PixelScale {
+        fx: camera.fx(),
+        fy: camera.fy(),
+    };
+    let starts = ippe::candidates(rays, marker).ok_or(EstimateError::NoSolution {
+        reason: "degenerate homography",
+    })?;
+    let [a, b] =
+        starts.map(|s| refine::refine(s, &model, rays, scale, params.max_iterations, params.trace));
+    let (best, other, best_start) = if a.rms <= b.rms {
+        (a, b, starts[0])
+    } else {
+        (b, a, starts[1])
+    };
+    if !best.rms.is_finite() {
+        return Err(EstimateError::NoSolution {
+            reason: "both candidates put the marker behind the camera",
+        });
+    }
+    let rotation_difference_rad = angle_between(&best.pose.r, &other.pose.r);
+    let ratio = if other.rms > 0.0 {
+        (best.rms / other.rms).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    let ambiguity = Ambiguity {
+        alternative_rms: other.rms,
+        ratio,
+        rotation_difference_rad,
+        ambiguous: ratio >= AMBIGUITY_RATIO_THRESHOLD
+            && rotation_difference_rad.to_degrees() > DISTINCT_ROTATION_DEG,
+    };
+    let covariance = match camera.unit() {
+        ImageUnit::Pixel => best
+            .jtj
+            .try_inverse()
+            .map(|inv| inv * params.corner_sigma_px.powi(2)),
+        ImageUnit::ImagePlaneMm => None,
+    };
+    let r = best.pose.r;
+    let t = best.pose.centre_mm - r * marker.centre().0.coords;
+    let pose = MarkerToCamera::new(r, t);
+    let corners_cam = marker.object_points().map(|m| pose.transform(&m));
+    let trace = best.depth_trace.as_ref().map(|depths| {
+        let start = model.map(|m| (best_start.r * m + best_start.centre_mm).z);
+        let mut previous = start;
+        depths
+            .iter()
+            .enumerate()
+            .map(|(i, z)| {
+                let e_c = z.iter().zip(&previous).map(|(a, b)| (a - b).abs()).sum();
+                previous = *z;
+                TraceStep {
+                    iteration: (i + 1) as u32,
+                    z_mm: *z,
+                    convergence_error_mm: e_c,
+                }
+            })
+            .collect()
+    });
+    Ok(PoseEstimate {
+        pose,
+        centre_mm: best.pose.centre_mm,
+        corners_cam,
+        diagnostics: Diagnostics {
+            method: Method::Reprojection,
+            converged: best.converged,
+            iterations: best.iterations,
+            convergence_error_mm: None,
+            side_residuals_mm: None,
+            reprojection_rms: Some(best.rms),
+            ambiguity: Some(ambiguity),
+            covariance,
+            trace,
+            warnings: Vec::new(),
+        },
+    })
+}

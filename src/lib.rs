@@ -1,0 +1,14 @@
+//! qrpose: where a QR code is in 3D and how it is turned, from one image of one camera.
+//!
+//! Module map (dependencies point downwards only; the core never names HTTP crates):
+//!
+//! | module | owns |
+//! |---|---|
+//! | [`geometry`] | frames, camera and distortion, marker, corner quadrilaterals, Euler angles (core) |
+//! | [`estimate`] | pose from four corners: `paper`, `depth-newton`, `reprojection` (core) |
+//! | [`api`] | wire types shared by the HTTP service and the CLI, and their validation |
+
+#![warn(missing_docs)]
+
+pub mod estimate;
+pub mod geometry;
