@@ -10,5 +10,6 @@
 
 #![warn(missing_docs)]
 
+pub mod api;
 pub mod estimate;
 pub mod geometry;

@@ -230,13 +230,11 @@ mod tests {
                 "start {start:?}: {} iterations",
                 out.iterations
             );
-            for i in 0..4 {
+            for (i, (got, want)) in out.z_mm.iter().zip(&truth).enumerate() {
                 assert!(
-                    (out.z_mm[i] - truth[i]).abs() < 1e-9,
-                    "start {start:?}, z{}: {} vs {} mm",
-                    i + 1,
-                    out.z_mm[i],
-                    truth[i]
+                    (got - want).abs() < 1e-9,
+                    "start {start:?}, z{}: {got} vs {want} mm",
+                    i + 1
                 );
             }
         }

@@ -35,7 +35,7 @@ pub fn fit_rigid(marker: &Marker, observed: &[CameraPoint; 4]) -> Option<MarkerT
     let ctc = Matrix2::new(c1.dot(&c1), c1.dot(&c2), c1.dot(&c2), c2.dot(&c2));
     let det = ctc.determinant();
     let tr = ctc.trace();
-    if !(det > RANK_TWO_REL_TOL * tr * tr) {
+    if det.is_nan() || det <= RANK_TWO_REL_TOL * tr * tr {
         return None;
     }
     // (CᵀC)^(1/2) for a 2×2 SPD matrix: (A + √det·I) / √(tr A + 2√det).

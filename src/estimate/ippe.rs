@@ -106,7 +106,7 @@ pub fn ippe_rotations(j: &Matrix2<f64>, v: (f64, f64)) -> Option<[Rotation3<f64>
     let half_tr = 0.5 * (ata[(0, 0)] + ata[(1, 1)]);
     let gap = (0.25 * (ata[(0, 0)] - ata[(1, 1)]).powi(2) + ata[(0, 1)] * ata[(0, 1)]).sqrt();
     let gamma = (half_tr + gap).sqrt();
-    if !(gamma > f64::EPSILON) {
+    if gamma.is_nan() || gamma <= f64::EPSILON {
         return None;
     }
     let rt = a / gamma;

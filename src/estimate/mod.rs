@@ -434,7 +434,10 @@ pub fn estimate_from_rays(
     if d.ambiguity.is_some_and(|a| a.ambiguous) {
         d.warnings.push(Warning::PoseAmbiguous);
     }
-    let behind = estimate.corners_cam.iter().any(|p| !(p.0.z > 0.0));
+    let behind = estimate
+        .corners_cam
+        .iter()
+        .any(|p| p.0.z.is_nan() || p.0.z <= 0.0);
     if behind || d.reprojection_rms.is_none() {
         d.warnings.push(Warning::BehindCamera);
     }
@@ -442,10 +445,10 @@ pub fn estimate_from_rays(
         ImageUnit::Pixel => Some(params.corner_sigma_px),
         ImageUnit::ImagePlaneMm => None,
     };
-    if let (Some(rms), Some(sigma)) = (d.reprojection_rms, sigma) {
-        if rms > HIGH_RMS_SIGMAS * sigma {
-            d.warnings.push(Warning::HighReprojectionError);
-        }
+    if let (Some(rms), Some(sigma)) = (d.reprojection_rms, sigma)
+        && rms > HIGH_RMS_SIGMAS * sigma
+    {
+        d.warnings.push(Warning::HighReprojectionError);
     }
     Ok(estimate)
 }
@@ -543,12 +546,11 @@ fn by_reprojection(
         let mut previous = start;
         depths
             .iter()
-            .enumerate()
-            .map(|(i, z)| {
+            .map(|(iteration, z)| {
                 let e_c = z.iter().zip(&previous).map(|(a, b)| (a - b).abs()).sum();
                 previous = *z;
                 TraceStep {
-                    iteration: (i + 1) as u32,
+                    iteration: *iteration,
                     z_mm: *z,
                     convergence_error_mm: e_c,
                 }

@@ -184,7 +184,7 @@ impl Distortion {
             let d = self.distort_with_jacobian(x, y);
             let (ex, ey) = (d.xd - p.x(), d.yd - p.y());
             let det = d.j[0][0] * d.j[1][1] - d.j[0][1] * d.j[1][0];
-            if !(det > 0.0) || !det.is_finite() {
+            if !det.is_finite() || det <= 0.0 {
                 return None;
             }
             if ex.abs().max(ey.abs()) <= UNDISTORT_TOL {

@@ -1,0 +1,322 @@
+//! RFC 9457 problem details: the one error body of the HTTP API and of the CLI.
+//!
+//! Every error has a stable snake_case [`ErrorCode`] that clients can switch on, the HTTP
+//! status it maps to, and, where one field is at fault, `field` as a JSON pointer into the
+//! request (`/corners_px/2`, `/camera/fx_px`) or the name of a query parameter.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+/// Stable machine-readable error codes. New codes may be added; existing ones never change.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ErrorCode {
+    /// 400: the body is not syntactically valid JSON (or is empty, or nested too deeply).
+    MalformedJson,
+    /// 400: a query parameter cannot be parsed.
+    MalformedQuery,
+    /// 422: a required field is missing.
+    MissingField,
+    /// 422: a field the API does not know (a typo would otherwise be silently ignored).
+    UnknownField,
+    /// 422: a field has the wrong JSON type or shape (e.g. a corner with three numbers).
+    InvalidType,
+    /// 422: an enumerated field has a value outside its set (e.g. an unknown `method`).
+    UnknownVariant,
+    /// 422: a number is NaN or infinite.
+    NonFiniteNumber,
+    /// 422: neither or both of `corners_px` and `corners_mm` were given.
+    CornersMissingOrConflicting,
+    /// 422: not exactly four corners.
+    CornerCount,
+    /// 422: two corners coincide.
+    DuplicateCorners,
+    /// 422: three corners lie on one line.
+    CollinearCorners,
+    /// 422: the corner outline crosses itself (two corners swapped).
+    SelfIntersectingCorners,
+    /// 422: the corner outline is not convex.
+    NonConvexCorners,
+    /// 422: the corners run counter-clockwise on screen (reversed or mirrored order).
+    MirroredCorners,
+    /// 422: the camera is given in no complete form, or in two forms at once.
+    IncompleteCamera,
+    /// 422: a focal length or pixel size is zero or negative.
+    InvalidCameraParameter,
+    /// 422: a corner cannot be undistorted with the given distortion coefficients.
+    UndistortionFailed,
+    /// 422: the marker size is zero or negative.
+    InvalidMarkerSize,
+    /// 422: a solver parameter is outside its documented range.
+    SolverParameterOutOfRange,
+    /// 422: no pose fits the corners.
+    NoSolution,
+    /// 422: the image cannot be decoded (corrupt, truncated or not an image).
+    UndecodableImage,
+    /// 413: the image declares more pixels than the configured limit.
+    ImageTooLarge,
+    /// 413: the request body exceeds the configured limit.
+    PayloadTooLarge,
+    /// 415: the content type is not one this endpoint accepts.
+    UnsupportedMediaType,
+    /// 404: no such route.
+    NotFound,
+    /// 405: the route exists but not with this method.
+    MethodNotAllowed,
+    /// 503: all estimation workers are busy and the queue is full; retry after `Retry-After`.
+    Overloaded,
+    /// 503: the request took longer than the configured timeout.
+    Timeout,
+    /// 500: a fault of the service, never of the request.
+    Internal,
+}
+
+impl ErrorCode {
+    /// The HTTP status this code is sent with.
+    pub fn status(self) -> u16 {
+        use ErrorCode::*;
+        match self {
+            MalformedJson | MalformedQuery => 400,
+            NotFound => 404,
+            MethodNotAllowed => 405,
+            ImageTooLarge | PayloadTooLarge => 413,
+            UnsupportedMediaType => 415,
+            Overloaded | Timeout => 503,
+            Internal => 500,
+            _ => 422,
+        }
+    }
+
+    /// A short human title, fixed per code.
+    pub fn title(self) -> &'static str {
+        use ErrorCode::*;
+        match self {
+            MalformedJson => "Malformed JSON",
+            MalformedQuery => "Malformed query string",
+            MissingField => "Missing field",
+            UnknownField => "Unknown field",
+            InvalidType => "Invalid field type",
+            UnknownVariant => "Unknown value",
+            NonFiniteNumber => "Non-finite number",
+            CornersMissingOrConflicting => "Give exactly one of corners_px and corners_mm",
+            CornerCount => "Exactly four corners are needed",
+            DuplicateCorners => "Duplicate corners",
+            CollinearCorners => "Collinear corners",
+            SelfIntersectingCorners => "Self-intersecting corners",
+            NonConvexCorners => "Non-convex corners",
+            MirroredCorners => "Mirrored corner order",
+            IncompleteCamera => "Incomplete camera",
+            InvalidCameraParameter => "Invalid camera parameter",
+            UndistortionFailed => "Undistortion failed",
+            InvalidMarkerSize => "Invalid marker size",
+            SolverParameterOutOfRange => "Solver parameter out of range",
+            NoSolution => "No pose fits the corners",
+            UndecodableImage => "Undecodable image",
+            ImageTooLarge => "Image too large",
+            PayloadTooLarge => "Payload too large",
+            UnsupportedMediaType => "Unsupported media type",
+            NotFound => "Not found",
+            MethodNotAllowed => "Method not allowed",
+            Overloaded => "Service overloaded",
+            Timeout => "Request timed out",
+            Internal => "Internal error",
+        }
+    }
+
+    /// The snake_case name, as on the wire.
+    pub fn as_str(self) -> String {
+        serde_json::to_value(self)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_owned))
+            .unwrap_or_default()
+    }
+}
+
+/// An RFC 9457 problem document (`application/problem+json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({
+    "type": "urn:qrpose:problem:duplicate_corners",
+    "title": "Duplicate corners",
+    "status": 422,
+    "detail": "corners 0 and 2 coincide",
+    "code": "duplicate_corners",
+    "field": "/corners_px/2"
+}))]
+pub struct Problem {
+    /// A URI naming the problem type: `urn:qrpose:problem:<code>`.
+    #[serde(rename = "type")]
+    pub type_uri: String,
+    /// Short summary, fixed per `code`.
+    pub title: String,
+    /// The HTTP status code.
+    pub status: u16,
+    /// What exactly is wrong with this request, for a human.
+    pub detail: String,
+    /// Stable machine-readable code.
+    pub code: ErrorCode,
+    /// The field at fault: a JSON pointer into the request body, or a query parameter name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub field: Option<String>,
+}
+
+impl Problem {
+    /// A problem with this code and detail.
+    pub fn new(code: ErrorCode, detail: impl Into<String>) -> Self {
+        Self {
+            type_uri: format!("urn:qrpose:problem:{}", code.as_str()),
+            title: code.title().to_owned(),
+            status: code.status(),
+            detail: detail.into(),
+            code,
+            field: None,
+        }
+    }
+
+    /// The same problem, naming the field at fault.
+    pub fn with_field(self, field: impl Into<String>) -> Self {
+        Self {
+            field: Some(field.into()),
+            ..self
+        }
+    }
+
+    /// Classifies a JSON deserialisation error, with the path of the offending field.
+    pub fn from_json_error(err: &serde_path_to_error::Error<serde_json::Error>) -> Self {
+        let inner = err.inner();
+        let message = inner.to_string();
+        let code = match inner.classify() {
+            serde_json::error::Category::Data => {
+                if message.starts_with("missing field") {
+                    ErrorCode::MissingField
+                } else if message.starts_with("unknown field") {
+                    ErrorCode::UnknownField
+                } else if message.starts_with("unknown variant") {
+                    ErrorCode::UnknownVariant
+                } else {
+                    ErrorCode::InvalidType
+                }
+            }
+            _ => ErrorCode::MalformedJson,
+        };
+        let problem = Self::new(code, message.clone());
+        match json_pointer(err.path(), code, &message) {
+            Some(pointer) => problem.with_field(pointer),
+            None => problem,
+        }
+    }
+}
+
+/// The JSON pointer of a serde path. For a missing field serde's path ends at the parent,
+/// so the field's name is taken from the message ("missing field `size_mm`").
+fn json_pointer(
+    path: &serde_path_to_error::Path,
+    code: ErrorCode,
+    message: &str,
+) -> Option<String> {
+    use serde_path_to_error::Segment;
+    if code == ErrorCode::MalformedJson {
+        return None;
+    }
+    let mut pointer = String::new();
+    for segment in path.iter() {
+        match segment {
+            Segment::Seq { index } => pointer.push_str(&format!("/{index}")),
+            Segment::Map { key } => {
+                pointer.push_str(&format!("/{}", key.replace('~', "~0").replace('/', "~1")))
+            }
+            Segment::Enum { variant } => pointer.push_str(&format!("/{variant}")),
+            Segment::Unknown => {}
+        }
+    }
+    if code == ErrorCode::MissingField
+        && let Some(name) = message.split('`').nth(1)
+    {
+        pointer.push('/');
+        pointer.push_str(name);
+    }
+    Some(pointer)
+}
+
+/// Parses JSON into `T`, turning any failure into a [`Problem`] that names the field.
+///
+/// # Errors
+/// A 400 problem for syntax errors, a 422 problem for shape errors.
+pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, Problem> {
+    let mut de = serde_json::Deserializer::from_slice(bytes);
+    let value: T =
+        serde_path_to_error::deserialize(&mut de).map_err(|e| Problem::from_json_error(&e))?;
+    de.end()
+        .map_err(|e| Problem::new(ErrorCode::MalformedJson, e.to_string()))?;
+    Ok(value)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Inner {
+        size_mm: f64,
+    }
+    #[derive(Debug, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Outer {
+        marker: Inner,
+        corners: Vec<[f64; 2]>,
+    }
+
+    #[test]
+    fn classifies_json_errors_with_their_field() {
+        let cases: [(&str, ErrorCode, Option<&str>); 6] = [
+            ("{", ErrorCode::MalformedJson, None),
+            ("", ErrorCode::MalformedJson, None),
+            (
+                r#"{"marker": {}, "corners": []}"#,
+                ErrorCode::MissingField,
+                Some("/marker/size_mm"),
+            ),
+            (
+                r#"{"marker": {"size_mm": 5, "sise": 1}, "corners": []}"#,
+                ErrorCode::UnknownField,
+                Some("/marker/sise"),
+            ),
+            (
+                r#"{"marker": {"size_mm": "5"}, "corners": []}"#,
+                ErrorCode::InvalidType,
+                Some("/marker/size_mm"),
+            ),
+            (
+                r#"{"marker": {"size_mm": 5}, "corners": [[1, 2], [1, "2"]]}"#,
+                ErrorCode::InvalidType,
+                Some("/corners/1/1"),
+            ),
+        ];
+        for (body, code, field) in cases {
+            let p = parse_json::<Outer>(body.as_bytes()).expect_err(body);
+            assert_eq!(p.code, code, "{body}: {p:?}");
+            assert_eq!(p.field.as_deref(), field, "{body}");
+            assert_eq!(p.status, code.status());
+        }
+    }
+
+    #[test]
+    fn trailing_garbage_is_malformed() {
+        let p = parse_json::<Inner>(br#"{"size_mm": 1} x"#).expect_err("trailing characters");
+        assert_eq!(p.code, ErrorCode::MalformedJson);
+    }
+
+    #[test]
+    fn problem_type_names_the_code() {
+        let p = Problem::new(ErrorCode::MirroredCorners, "reversed");
+        assert_eq!(p.type_uri, "urn:qrpose:problem:mirrored_corners");
+        assert_eq!(p.status, 422);
+        let json = serde_json::to_value(&p).expect("serialisable");
+        assert!(
+            json.get("field").is_none(),
+            "no field key when none is at fault"
+        );
+    }
+}

@@ -1,0 +1,36 @@
+//! The `qrpose` command line: one subcommand per file, each printing the same JSON as the
+//! HTTP API.
+//!
+//! Exit codes: 0 success; 2 the input was refused (the problem+json document is on
+//! stderr); 1 anything else (I/O, internal).
+
+mod estimate;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Exit code for input the API would answer with a 4xx problem.
+pub const EXIT_BAD_INPUT: u8 = 2;
+
+/// qrpose: where a QR code is in 3D and how it is turned, from one camera image.
+#[derive(Debug, Parser)]
+#[command(name = "qrpose", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Estimate a pose: prints what `POST /v1/pose/corners` would return.
+    Estimate(estimate::EstimateArgs),
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> ExitCode {
+    match cli.command {
+        Command::Estimate(args) => estimate::run(&args),
+    }
+}
