@@ -423,6 +423,9 @@ pub fn problem_from_estimate_error(err: EstimateError, corners_pointer: &str) ->
             Problem::new(ErrorCode::UndistortionFailed, source.to_string())
                 .with_field(format!("{corners_pointer}/{index}"))
         }
+        EstimateError::PointCount { .. } => {
+            Problem::new(ErrorCode::CornerCount, err.to_string()).with_field(corners_pointer)
+        }
         EstimateError::NoSolution { .. } => {
             Problem::new(ErrorCode::NoSolution, err.to_string()).with_field(corners_pointer)
         }

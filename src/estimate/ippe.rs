@@ -7,12 +7,14 @@
 //! rotations; each gets the least-squares translation. On exact input one of the two is
 //! the true pose; under noise both are refined by [`super::refine`].
 //!
-//! Model plane coordinates: the marker frame shifted to the centre, so the corners are
-//! P1 (l/2, l/2), P2 (l/2, −l/2), P3 (−l/2, −l/2), P4 (−l/2, l/2) and the rotation is the
-//! marker-to-camera rotation itself.
+//! Model plane coordinates: the marker frame shifted to the centroid of the model points (for
+//! the four corners, the marker centre: P1 (l/2, l/2), P2 (l/2, −l/2), P3 (−l/2, −l/2),
+//! P4 (−l/2, l/2)), so the rotation is the marker-to-camera rotation itself. Four corners
+//! get their homography in closed form; more points (e.g. the finder patterns' corners)
+//! get it by the normalised DLT (Hartley & Zisserman, Algorithm 4.2).
 
 use crate::geometry::{frames::NormalizedPoint, marker::Marker};
-use nalgebra::{Matrix2, Matrix3, Rotation3, Vector3};
+use nalgebra::{DMatrix, Matrix2, Matrix3, Rotation3, SymmetricEigen, Vector2, Vector3};
 
 /// One candidate pose: rotation and the marker centre in the camera frame (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -128,11 +130,11 @@ pub fn ippe_rotations(j: &Matrix2<f64>, v: (f64, f64)) -> Option<[Rotation3<f64>
     Some([candidate(1.0), candidate(-1.0)])
 }
 
-/// The marker centre that best explains the rays for a given rotation, by linear least
+/// The model origin that best explains the rays for a given rotation, by linear least
 /// squares on x_n·(q_z + c_z) = q_x + c_x and y_n·(q_z + c_z) = q_y + c_y, q = R·m.
 pub fn centre_for_rotation(
-    rays: &[NormalizedPoint; 4],
-    model: &[Vector3<f64>; 4],
+    rays: &[NormalizedPoint],
+    model: &[Vector3<f64>],
     r: &Rotation3<f64>,
 ) -> Option<Vector3<f64>> {
     let mut ata = Matrix3::zeros();
@@ -151,26 +153,88 @@ pub fn centre_for_rotation(
     ata.cholesky().map(|c| c.solve(&atb))
 }
 
-/// Both IPPE candidates for the four rays P1..P4, or `None` for a degenerate outline.
-pub fn candidates(rays: &[NormalizedPoint; 4], marker: &Marker) -> Option<[CentredPose; 2]> {
-    let h = homography_from_square(rays, marker)?;
+/// Hartley's normalising similarity: centroid to the origin, mean distance √2.
+fn normalising_transform(points: &[Vector2<f64>]) -> Option<Matrix3<f64>> {
+    let n = points.len() as f64;
+    let c = points.iter().sum::<Vector2<f64>>() / n;
+    let mean_dist = points.iter().map(|p| (p - c).norm()).sum::<f64>() / n;
+    if mean_dist.is_nan() || mean_dist <= 0.0 {
+        return None;
+    }
+    let s = std::f64::consts::SQRT_2 / mean_dist;
+    #[rustfmt::skip]
+    let t = Matrix3::new(
+        s,   0.0, -s * c.x,
+        0.0, s,   -s * c.y,
+        0.0, 0.0, 1.0,
+    );
+    Some(t)
+}
+
+/// The homography from model-plane points (mm) to normalised image points by the
+/// normalised DLT, scaled so that H33 = 1. Needs at least four points; `None` when they
+/// are degenerate (collinear, coincident).
+pub fn homography_dlt(model_xy: &[Vector2<f64>], rays: &[NormalizedPoint]) -> Option<Matrix3<f64>> {
+    if model_xy.len() < 4 || model_xy.len() != rays.len() {
+        return None;
+    }
+    let image: Vec<Vector2<f64>> = rays.iter().map(|r| Vector2::new(r.x(), r.y())).collect();
+    let tm = normalising_transform(model_xy)?;
+    let ti = normalising_transform(&image)?;
+    let mut a = DMatrix::<f64>::zeros(2 * rays.len(), 9);
+    for (k, (m, i)) in model_xy.iter().zip(&image).enumerate() {
+        let m = tm * Vector3::new(m.x, m.y, 1.0);
+        let i = ti * Vector3::new(i.x, i.y, 1.0);
+        let (xm, ym, x, y) = (m.x, m.y, i.x, i.y);
+        let rows = [
+            [xm, ym, 1.0, 0.0, 0.0, 0.0, -x * xm, -x * ym, -x],
+            [0.0, 0.0, 0.0, xm, ym, 1.0, -y * xm, -y * ym, -y],
+        ];
+        for (r, row) in rows.iter().enumerate() {
+            for (c, v) in row.iter().enumerate() {
+                a[(2 * k + r, c)] = *v;
+            }
+        }
+    }
+    let ata = a.transpose() * &a;
+    let eig = SymmetricEigen::new(ata);
+    let smallest = eig.eigenvalues.imin();
+    let h = eig.eigenvectors.column(smallest);
+    let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
+    let hm = ti.try_inverse()? * hn * tm;
+    let scale = hm[(2, 2)];
+    (scale.is_finite() && scale.abs() > f64::EPSILON).then(|| hm / scale)
+}
+
+/// Both IPPE candidates from a homography H (model plane, centred, mm → normalised image,
+/// H33 = 1), with each candidate's least-squares origin for `model` (centred, z = 0).
+pub fn candidates_from_homography(
+    h: &Matrix3<f64>,
+    rays: &[NormalizedPoint],
+    model: &[Vector3<f64>],
+) -> Option<[CentredPose; 2]> {
     let v = (h[(0, 2)], h[(1, 2)]);
     #[rustfmt::skip]
     let j = Matrix2::new(
         h[(0, 0)] - h[(2, 0)] * v.0, h[(0, 1)] - h[(2, 1)] * v.0,
         h[(1, 0)] - h[(2, 0)] * v.1, h[(1, 1)] - h[(2, 1)] * v.1,
     );
-    let model = centred_model(marker);
     let [ra, rb] = ippe_rotations(&j, v)?;
     let a = CentredPose {
         r: ra,
-        centre_mm: centre_for_rotation(rays, &model, &ra)?,
+        centre_mm: centre_for_rotation(rays, model, &ra)?,
     };
     let b = CentredPose {
         r: rb,
-        centre_mm: centre_for_rotation(rays, &model, &rb)?,
+        centre_mm: centre_for_rotation(rays, model, &rb)?,
     };
     Some([a, b])
+}
+
+/// Both IPPE candidates for the four corner rays P1..P4, or `None` for a degenerate outline.
+pub fn candidates(rays: &[NormalizedPoint; 4], marker: &Marker) -> Option<[CentredPose; 2]> {
+    let h = homography_from_square(rays, marker)?;
+    candidates_from_homography(&h, rays, &centred_model(marker))
 }
 
 #[cfg(test)]
@@ -229,5 +293,24 @@ mod tests {
                 "{name}: the candidates should differ"
             );
         }
+    }
+
+    #[test]
+    fn dlt_homography_agrees_with_the_closed_form_on_four_corners() {
+        let marker = Marker::try_new(30.0).expect("valid size");
+        let pose = MarkerToCamera::new(
+            EulerXyz::from_degrees(-25.0, 35.0, -120.0).to_rotation(),
+            Vector3::new(15.0, 40.0, 320.0),
+        );
+        let rays = marker
+            .object_points()
+            .map(|m| pose.transform(&m).normalized().expect("in front"));
+        let model_xy = centred_model(&marker).map(|m| Vector2::new(m.x, m.y));
+        let dlt = homography_dlt(&model_xy, &rays).expect("non-degenerate");
+        let closed = homography_from_square(&rays, &marker).expect("non-degenerate");
+        assert!(
+            (dlt - closed).norm() < 1e-9 * closed.norm(),
+            "{dlt} vs {closed}"
+        );
     }
 }

@@ -20,7 +20,7 @@ pub mod refine;
 use crate::geometry::{
     camera::{Camera, CameraError, ImageUnit},
     euler::angle_between,
-    frames::{CameraPoint, MarkerToCamera, NormalizedPoint},
+    frames::{CameraPoint, MarkerPoint, MarkerToCamera, NormalizedPoint, PixelPoint},
     marker::Marker,
     quad::ImageQuad,
 };
@@ -241,6 +241,14 @@ pub enum EstimateError {
         /// What the camera model said.
         source: CameraError,
     },
+    /// Fewer than four plane points, or model and image lists of different lengths.
+    #[error("need at least 4 matching points, got {model} model and {image} image points")]
+    PointCount {
+        /// Model points given.
+        model: usize,
+        /// Image points given.
+        image: usize,
+    },
     /// The corners admit no pose: the closed-form step or the rigid fit is degenerate (for
     /// `paper`, the iteration collapsed the corners onto a line or a point).
     #[error("no pose fits these corners ({reason})")]
@@ -427,6 +435,12 @@ pub fn estimate_from_rays(
         }
         Method::Reprojection => by_reprojection(rays, camera, marker, params)?,
     };
+    add_warnings(&mut estimate, camera, params);
+    Ok(estimate)
+}
+
+/// Adds the [`Warning`]s an estimate deserves.
+fn add_warnings(estimate: &mut PoseEstimate, camera: &Camera, params: &EstimatorParams) {
     let d = &mut estimate.diagnostics;
     if !d.converged {
         d.warnings.push(Warning::NotConverged);
@@ -450,7 +464,6 @@ pub fn estimate_from_rays(
     {
         d.warnings.push(Warning::HighReprojectionError);
     }
-    Ok(estimate)
 }
 
 /// Builds the estimate of the depth-based methods: corners from Eq. 6 and a rigid fit.
@@ -490,23 +503,108 @@ fn from_depths(
     })
 }
 
-/// IPPE's two candidates, each refined; the better reported, the other in `ambiguity`.
+/// The four corners by IPPE from the closed-form square homography.
 fn by_reprojection(
     rays: &[NormalizedPoint; 4],
     camera: &Camera,
     marker: &Marker,
     params: &EstimatorParams,
 ) -> Result<PoseEstimate, EstimateError> {
-    let model = ippe::centred_model(marker);
+    let h = ippe::homography_from_square(rays, marker).ok_or(DEGENERATE_HOMOGRAPHY)?;
+    let model = PlanarModel {
+        centred: &ippe::centred_model(marker),
+        origin_mm: marker.centre().0.coords,
+    };
+    solve_planar(&model, rays, &h, camera, marker, params)
+}
+
+const DEGENERATE_HOMOGRAPHY: EstimateError = EstimateError::NoSolution {
+    reason: "degenerate homography",
+};
+
+/// Model points for a reprojection solve: marker-frame points shifted by `origin_mm` (their
+/// centroid) so that the homography and IPPE are well conditioned.
+struct PlanarModel<'a> {
+    centred: &'a [Vector3<f64>],
+    origin_mm: Vector3<f64>,
+}
+
+/// Estimates the pose from any four or more points of the marker plane, e.g. the twelve
+/// corners of the three finder patterns: IPPE from a DLT homography, both candidates
+/// refined by Levenberg-Marquardt on pixel error. Always the `reprojection` method; the
+/// corner-based methods need exactly the four corners.
+///
+/// `model` are the points in the marker frame (z = 0, mm) and `image` where they were seen
+/// (px, or image-plane mm), in the same order.
+///
+/// # Errors
+/// [`EstimateError::ParamOutOfRange`] for bad parameters, [`EstimateError::PointCount`] for
+/// fewer than four points or lists of different lengths, [`EstimateError::Undistortion`]
+/// for a point with no ray (indexed into `image`), [`EstimateError::NoSolution`] for
+/// degenerate points.
+pub fn estimate_planar_points(
+    model: &[MarkerPoint],
+    image: &[PixelPoint],
+    camera: &Camera,
+    marker: &Marker,
+    params: &EstimatorParams,
+) -> Result<PoseEstimate, EstimateError> {
+    let params = params.with_method(Method::Reprojection);
+    params.validate()?;
+    if model.len() < 4 || model.len() != image.len() {
+        return Err(EstimateError::PointCount {
+            model: model.len(),
+            image: image.len(),
+        });
+    }
+    let rays = image
+        .iter()
+        .enumerate()
+        .map(|(index, p)| {
+            camera
+                .normalize(p)
+                .map_err(|source| EstimateError::Undistortion { index, source })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let origin_mm = model.iter().map(|m| m.0.coords).sum::<Vector3<f64>>() / model.len() as f64;
+    let centred: Vec<Vector3<f64>> = model.iter().map(|m| m.0.coords - origin_mm).collect();
+    let model_xy: Vec<nalgebra::Vector2<f64>> = centred.iter().map(|m| m.xy()).collect();
+    let h = ippe::homography_dlt(&model_xy, &rays).ok_or(DEGENERATE_HOMOGRAPHY)?;
+    let planar = PlanarModel {
+        centred: &centred,
+        origin_mm,
+    };
+    let mut estimate = solve_planar(&planar, &rays, &h, camera, marker, &params)?;
+    add_warnings(&mut estimate, camera, &params);
+    Ok(estimate)
+}
+
+/// IPPE's two candidates from `h`, each refined; the better reported, the other in
+/// `ambiguity`.
+fn solve_planar(
+    model: &PlanarModel<'_>,
+    rays: &[NormalizedPoint],
+    h: &nalgebra::Matrix3<f64>,
+    camera: &Camera,
+    marker: &Marker,
+    params: &EstimatorParams,
+) -> Result<PoseEstimate, EstimateError> {
     let scale = refine::PixelScale {
         fx: camera.fx(),
         fy: camera.fy(),
     };
-    let starts = ippe::candidates(rays, marker).ok_or(EstimateError::NoSolution {
-        reason: "degenerate homography",
-    })?;
-    let [a, b] =
-        starts.map(|s| refine::refine(s, &model, rays, scale, params.max_iterations, params.trace));
+    let starts =
+        ippe::candidates_from_homography(h, rays, model.centred).ok_or(DEGENERATE_HOMOGRAPHY)?;
+    let [a, b] = starts.map(|s| {
+        refine::refine(
+            s,
+            model.centred,
+            rays,
+            scale,
+            params.max_iterations,
+            params.trace,
+        )
+    });
     let (best, other, best_start) = if a.rms <= b.rms {
         (a, b, starts[0])
     } else {
@@ -530,36 +628,43 @@ fn by_reprojection(
         ambiguous: ratio >= AMBIGUITY_RATIO_THRESHOLD
             && rotation_difference_rad.to_degrees() > DISTINCT_ROTATION_DEG,
     };
+    // The covariance is of the model origin; move it to the marker centre: c = o + R·(centre − origin).
+    let to_centre = marker.centre().0.coords - model.origin_mm;
     let covariance = match camera.unit() {
-        ImageUnit::Pixel => best
-            .jtj
-            .try_inverse()
-            .map(|inv| inv * params.corner_sigma_px.powi(2)),
+        ImageUnit::Pixel => best.jtj.try_inverse().map(|inv| {
+            centre_covariance(
+                &(inv * params.corner_sigma_px.powi(2)),
+                &(best.pose.r * to_centre),
+            )
+        }),
         ImageUnit::ImagePlaneMm => None,
     };
-    let r = best.pose.r;
-    let t = best.pose.centre_mm - r * marker.centre().0.coords;
-    let pose = MarkerToCamera::new(r, t);
+    let pose_of =
+        |p: &ippe::CentredPose| MarkerToCamera::new(p.r, p.centre_mm - p.r * model.origin_mm);
+    let pose = pose_of(&best.pose);
     let corners_cam = marker.object_points().map(|m| pose.transform(&m));
-    let trace = best.depth_trace.as_ref().map(|depths| {
-        let start = model.map(|m| (best_start.r * m + best_start.centre_mm).z);
-        let mut previous = start;
-        depths
+    let trace = best.pose_trace.as_ref().map(|steps| {
+        let depths =
+            |p: &ippe::CentredPose| marker.object_points().map(|m| pose_of(p).transform(&m).0.z);
+        let mut previous = depths(&best_start);
+        steps
             .iter()
-            .map(|(iteration, z)| {
+            .map(|(iteration, p)| {
+                let z = depths(p);
                 let e_c = z.iter().zip(&previous).map(|(a, b)| (a - b).abs()).sum();
-                previous = *z;
+                previous = z;
                 TraceStep {
                     iteration: *iteration,
-                    z_mm: *z,
+                    z_mm: z,
                     convergence_error_mm: e_c,
                 }
             })
             .collect()
     });
+    let reprojection_rms = Some(best.rms);
     Ok(PoseEstimate {
         pose,
-        centre_mm: best.pose.centre_mm,
+        centre_mm: pose.transform(&marker.centre()).0.coords,
         corners_cam,
         diagnostics: Diagnostics {
             method: Method::Reprojection,
@@ -567,11 +672,151 @@ fn by_reprojection(
             iterations: best.iterations,
             convergence_error_mm: None,
             side_residuals_mm: None,
-            reprojection_rms: Some(best.rms),
+            reprojection_rms,
             ambiguity: Some(ambiguity),
             covariance,
             trace,
             warnings: Vec::new(),
         },
     })
+}
+
+/// Moves a covariance of (δ rotation, origin) to (δ rotation, p) for a point p = o + d with
+/// d = R·(point − origin) in camera axes: under a left rotation δ, p moves by δ × d + δo,
+/// so J = [[I, 0], [−[d]×, I]] and Σ' = J Σ Jᵀ.
+fn centre_covariance(cov: &Matrix6<f64>, d: &Vector3<f64>) -> Matrix6<f64> {
+    let mut j = Matrix6::identity();
+    #[rustfmt::skip]
+    let minus_skew = nalgebra::Matrix3::new(
+        0.0,  d.z,  -d.y,
+        -d.z, 0.0,  d.x,
+        d.y,  -d.x, 0.0,
+    );
+    j.fixed_view_mut::<3, 3>(3, 0).copy_from(&minus_skew);
+    j * cov * j.transpose()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{euler::EulerXyz, marker::CornerOrder};
+    use nalgebra::Point3;
+
+    fn setup() -> (Camera, Marker, MarkerToCamera) {
+        let camera = Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("valid camera");
+        let marker = Marker::try_new(50.0).expect("valid size");
+        let truth = MarkerToCamera::new(
+            EulerXyz::from_degrees(25.0, -15.0, 40.0).to_rotation(),
+            Vector3::new(-40.0, 30.0, 450.0),
+        );
+        (camera, marker, truth)
+    }
+
+    /// The twelve corners of the three finder patterns of a 25-module (version 2) symbol, in
+    /// the marker frame: symbol (col, row) in modules maps to (−l + col·s, row·s).
+    fn finder_corners(marker: &Marker) -> Vec<MarkerPoint> {
+        let n = 25.0;
+        let s = marker.size_mm() / n;
+        let squares = [(0.0, 0.0), (n - 7.0, 0.0), (0.0, n - 7.0)];
+        squares
+            .iter()
+            .flat_map(|&(c, r)| [(c, r), (c + 7.0, r), (c + 7.0, r + 7.0), (c, r + 7.0)])
+            .map(|(c, r)| MarkerPoint(Point3::new(-marker.size_mm() + c * s, r * s, 0.0)))
+            .collect()
+    }
+
+    #[test]
+    fn recovers_the_pose_from_the_twelve_finder_corners() {
+        let (camera, marker, truth) = setup();
+        let model = finder_corners(&marker);
+        let image: Vec<PixelPoint> = model
+            .iter()
+            .map(|m| camera.project(&truth.transform(m)).expect("in front"))
+            .collect();
+        let params = EstimatorParams::default().with_trace(true);
+        let est =
+            estimate_planar_points(&model, &image, &camera, &marker, &params).expect("solvable");
+        assert!(angle_between(&est.pose.rotation(), &truth.rotation()) < 1e-9);
+        assert!((est.pose.translation_mm() - truth.translation_mm()).norm() < 1e-6);
+        let centre = truth.transform(&marker.centre()).0.coords;
+        assert!((est.centre_mm - centre).norm() < 1e-6);
+        assert!(est.diagnostics.covariance.is_some() && est.diagnostics.warnings.is_empty());
+    }
+
+    #[test]
+    fn four_corners_give_the_same_pose_by_either_path() {
+        let (camera, marker, truth) = setup();
+        let corners = marker.object_points();
+        let noise = [(0.3, -0.2), (-0.4, 0.1), (0.2, 0.5), (-0.1, -0.3)];
+        let image: [PixelPoint; 4] = std::array::from_fn(|i| {
+            let p = camera
+                .project(&truth.transform(&corners[i]))
+                .expect("in front");
+            PixelPoint::new(p.u() + noise[i].0, p.v() + noise[i].1)
+        });
+        let params = EstimatorParams::default();
+        let quad = ImageQuad::try_new(image, CornerOrder::Paper).expect("valid quad");
+        let by_quad = estimate_pose(&quad, &camera, &marker, &params).expect("solvable");
+        let by_points =
+            estimate_planar_points(&corners, &image, &camera, &marker, &params).expect("solvable");
+        assert!(angle_between(&by_quad.pose.rotation(), &by_points.pose.rotation()) < 1e-9);
+        assert!((by_quad.centre_mm - by_points.centre_mm).norm() < 1e-6);
+        let (a, b) = (
+            by_quad.diagnostics.covariance,
+            by_points.diagnostics.covariance,
+        );
+        let (a, b) = (a.expect("covariance"), b.expect("covariance"));
+        assert!(
+            (a - b).norm() < 1e-6 * a.norm(),
+            "covariance of the centre by either origin"
+        );
+    }
+
+    #[test]
+    fn refuses_too_few_or_mismatched_points() {
+        let (camera, marker, _) = setup();
+        let model = marker.object_points();
+        let image = [PixelPoint::new(1.0, 1.0); 3];
+        let err = estimate_planar_points(
+            &model,
+            &image,
+            &camera,
+            &marker,
+            &EstimatorParams::default(),
+        )
+        .expect_err("mismatched");
+        assert_eq!(err, EstimateError::PointCount { model: 4, image: 3 });
+    }
+
+    #[test]
+    fn covariance_moves_to_the_centre_like_the_exact_map_does() {
+        // Sigma points of a small covariance, pushed through p = exp(δ)·d + o, must have the
+        // covariance that centre_covariance predicts.
+        #[rustfmt::skip]
+        let l = Matrix6::new(
+            2.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+            0.3, 1.0, 0.0, 0.0, 0.0, 0.0,
+            -0.2, 0.1, 1.5, 0.0, 0.0, 0.0,
+            0.5, -0.4, 0.2, 3.0, 0.0, 0.0,
+            0.1, 0.6, -0.3, 0.2, 2.0, 0.0,
+            -0.7, 0.2, 0.4, 0.1, -0.5, 4.0,
+        ) * 1e-4;
+        let cov = l * l.transpose();
+        let d = Vector3::new(12.0, -30.0, 8.0);
+        let mut sample = Matrix6::zeros();
+        for k in 0..6 {
+            for sign in [-1.0, 1.0] {
+                let x: nalgebra::Vector6<f64> = l.column(k) * sign * 6f64.sqrt();
+                let delta = Vector3::new(x[0], x[1], x[2]);
+                let p = nalgebra::Rotation3::new(delta) * d - d + Vector3::new(x[3], x[4], x[5]);
+                let y = nalgebra::Vector6::new(x[0], x[1], x[2], p.x, p.y, p.z);
+                sample += y * y.transpose() / 12.0;
+            }
+        }
+        let predicted = centre_covariance(&cov, &d);
+        assert!(
+            (predicted - sample).norm() < 1e-3 * predicted.norm(),
+            "{predicted} vs {sample}"
+        );
+    }
 }

@@ -44,7 +44,7 @@ pub struct PixelScale {
 pub struct Refined {
     /// The pose at the minimum.
     pub pose: CentredPose,
-    /// √(Σ residual² / 4): RMS corner distance in image units.
+    /// √(Σ|Δ|² / N): RMS point distance in image units.
     pub rms: f64,
     /// Iterations run (accepted and rejected steps).
     pub iterations: u32,
@@ -52,9 +52,8 @@ pub struct Refined {
     pub converged: bool,
     /// JᵀJ at the minimum (image units² per parameter unit²).
     pub jtj: Matrix6<f64>,
-    /// Iteration number and corner depths z1..z4 (mm) after each accepted step, when asked
-    /// for.
-    pub depth_trace: Option<Vec<(u32, [f64; 4])>>,
+    /// Iteration number and pose after each accepted step, when asked for.
+    pub pose_trace: Option<Vec<(u32, CentredPose)>>,
 }
 
 struct Linearisation {
@@ -76,8 +75,8 @@ fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
 /// Sum of squared pixel residuals; infinite when a corner is at or behind the camera.
 fn cost(
     pose: &CentredPose,
-    model: &[Vector3<f64>; 4],
-    rays: &[NormalizedPoint; 4],
+    model: &[Vector3<f64>],
+    rays: &[NormalizedPoint],
     s: PixelScale,
 ) -> f64 {
     let mut sum = 0.0;
@@ -95,8 +94,8 @@ fn cost(
 
 fn linearise(
     pose: &CentredPose,
-    model: &[Vector3<f64>; 4],
-    rays: &[NormalizedPoint; 4],
+    model: &[Vector3<f64>],
+    rays: &[NormalizedPoint],
     s: PixelScale,
 ) -> Linearisation {
     let mut jtj = Matrix6::zeros();
@@ -131,16 +130,17 @@ fn linearise(
     }
 }
 
-fn depths(pose: &CentredPose, model: &[Vector3<f64>; 4]) -> [f64; 4] {
-    [0, 1, 2, 3].map(|i| (pose.r * model[i] + pose.centre_mm).z)
+/// √(Σ|Δ|² / N): the RMS distance between measured and projected points.
+fn rms_from_cost(cost: f64, points: usize) -> f64 {
+    (cost / points.max(1) as f64).sqrt()
 }
 
 /// Refines `start` by Levenberg-Marquardt on the pixel reprojection error of the centred
-/// model corners `model` (P1..P4) against the measured `rays`.
+/// model points `model` against the measured `rays` (same length, at least 4).
 pub fn refine(
     start: CentredPose,
-    model: &[Vector3<f64>; 4],
-    rays: &[NormalizedPoint; 4],
+    model: &[Vector3<f64>],
+    rays: &[NormalizedPoint],
     scale: PixelScale,
     max_iterations: u32,
     trace: bool,
@@ -148,7 +148,7 @@ pub fn refine(
     let mut pose = start;
     let mut lin = linearise(&pose, model, rays, scale);
     let mut damping = INITIAL_DAMPING;
-    let mut depth_trace = trace.then(Vec::new);
+    let mut pose_trace = trace.then(Vec::new);
     let mut converged = false;
     let mut iterations = 0;
     if !lin.cost.is_finite() {
@@ -158,7 +158,7 @@ pub fn refine(
             iterations,
             converged,
             jtj: lin.jtj,
-            depth_trace,
+            pose_trace,
         };
     }
     while iterations < max_iterations {
@@ -184,8 +184,8 @@ pub fn refine(
             pose = candidate;
             lin = linearise(&pose, model, rays, scale);
             damping = (damping / 10.0).max(INITIAL_DAMPING * 1e-6);
-            if let Some(t) = depth_trace.as_mut() {
-                t.push((iterations, depths(&pose, model)));
+            if let Some(t) = pose_trace.as_mut() {
+                t.push((iterations, pose));
             }
             if small_step || stalled {
                 converged = true;
@@ -204,11 +204,11 @@ pub fn refine(
     }
     Refined {
         pose,
-        rms: (lin.cost / 4.0).sqrt(),
+        rms: rms_from_cost(lin.cost, rays.len()),
         iterations,
         converged,
         jtj: lin.jtj,
-        depth_trace,
+        pose_trace,
     }
 }
 
