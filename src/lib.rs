@@ -13,3 +13,4 @@
 pub mod api;
 pub mod estimate;
 pub mod geometry;
+pub mod sim;

@@ -5,6 +5,7 @@
 //! stderr); 1 anything else (I/O, internal).
 
 mod estimate;
+mod simulate;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -26,11 +27,17 @@ pub struct Cli {
 pub enum Command {
     /// Estimate a pose: prints what `POST /v1/pose/corners` would return.
     Estimate(estimate::EstimateArgs),
+    /// Reproduce the paper's simulation (Table 10, Figures 8-12, Tables 5-9).
+    Simulate(simulate::SimulateArgs),
 }
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Estimate(args) => estimate::run(&args),
+        Command::Simulate(args) => simulate::run(&args).unwrap_or_else(|e| {
+            eprintln!("qrpose simulate: {e:#}");
+            ExitCode::FAILURE
+        }),
     }
 }

@@ -30,6 +30,14 @@ use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 /// A step smaller than this fraction of the mean depth ends the iteration as converged.
 pub const STEP_TOL_REL: f64 = 1e-12;
 
+/// A residual RMS below this fraction of the marker size is the floor of double precision:
+/// the lengths fit exactly and the search ends as converged. At fronto-parallel views the
+/// tilt is second order in the lengths, so JᵀJ is singular there and the steps would creep.
+pub const RESIDUAL_FLOOR_REL: f64 = 1e-12;
+
+/// An accepted step lowering the cost by less than this fraction ends the search.
+pub const COST_DECREASE_TOL_REL: f64 = 1e-10;
+
 /// Starting Levenberg-Marquardt damping, relative to the diagonal of JᵀJ.
 const INITIAL_DAMPING: f64 = 1e-6;
 
@@ -149,7 +157,12 @@ pub fn solve(
     let mut last_step = None;
     let mut converged = false;
     let mut iterations = 0;
+    let floor_cost = (RESIDUAL_FLOOR_REL * marker.size_mm()).powi(2) * EDGES.len() as f64;
     while iterations < params.max_iterations {
+        if lin.cost <= floor_cost {
+            converged = true;
+            break;
+        }
         iterations += 1;
         let mut a = lin.jtj;
         for i in 0..4 {
@@ -163,6 +176,7 @@ pub fn solve(
         let mean_z = z.iter().sum::<f64>() / 4.0;
         let small_step = step.amax() <= STEP_TOL_REL * mean_z.abs();
         if cost_new.is_finite() && cost_new <= lin.cost {
+            let stalled = lin.cost - cost_new <= COST_DECREASE_TOL_REL * lin.cost;
             let e_c: f64 = step.iter().map(|s| s.abs()).sum();
             z = z_new;
             lin = linearise(rays, &z, marker);
@@ -175,7 +189,7 @@ pub fn solve(
                     convergence_error_mm: e_c,
                 });
             }
-            if small_step {
+            if small_step || stalled {
                 converged = true;
                 break;
             }

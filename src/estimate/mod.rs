@@ -605,7 +605,8 @@ fn solve_planar(
             params.trace,
         )
     });
-    let (best, other, best_start) = if a.rms <= b.rms {
+    let floor_rms = refine::RESIDUAL_FLOOR_NORMALISED * camera.fx().max(camera.fy());
+    let (best, other, best_start) = if first_is_better(&a, &b, floor_rms) {
         (a, b, starts[0])
     } else {
         (b, a, starts[1])
@@ -679,6 +680,16 @@ fn solve_planar(
             warnings: Vec::new(),
         },
     })
+}
+
+/// Whether refined candidate `a` beats `b`: the lower RMS, except that RMS values within
+/// `floor_rms` of each other are a tie (both fit exactly) and then the converged one wins.
+fn first_is_better(a: &refine::Refined, b: &refine::Refined, floor_rms: f64) -> bool {
+    let tie = (a.rms - b.rms).abs() <= floor_rms;
+    if tie && a.converged != b.converged {
+        return a.converged;
+    }
+    a.rms <= b.rms
 }
 
 /// Moves a covariance of (δ rotation, origin) to (δ rotation, p) for a point p = o + d with

@@ -24,6 +24,11 @@ pub const STEP_TOL: f64 = 1e-12;
 /// there; at this point the remaining parameter error is ~1e-5 of its standard deviation.
 pub const COST_DECREASE_TOL_REL: f64 = 1e-10;
 
+/// A residual RMS below this many normalised units (1e-12 rad of viewing angle; 1e-9 px at
+/// fx = 1000 px) is the floor of double precision: the fit is exact and the search ends as
+/// converged, whatever the step.
+pub const RESIDUAL_FLOOR_NORMALISED: f64 = 1e-12;
+
 /// Starting damping relative to the diagonal of JᵀJ; the IPPE start is already close.
 const INITIAL_DAMPING: f64 = 1e-6;
 
@@ -161,7 +166,13 @@ pub fn refine(
             pose_trace,
         };
     }
+    let floor_cost =
+        (RESIDUAL_FLOOR_NORMALISED * scale.fx.max(scale.fy)).powi(2) * rays.len() as f64;
     while iterations < max_iterations {
+        if lin.cost <= floor_cost {
+            converged = true;
+            break;
+        }
         iterations += 1;
         let mut a = lin.jtj;
         for i in 0..6 {
