@@ -1,0 +1,199 @@
+//! The `qrpose` binary's `estimate` and `simulate` commands, run as a user would.
+
+use serde_json::Value;
+use std::io::Write;
+use std::process::{Command, Output, Stdio};
+
+const BIN: &str = env!("CARGO_BIN_EXE_qrpose");
+const FIXTURE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/fixtures/corners_request.json"
+);
+
+fn run(args: &[&str], stdin: Option<&str>) -> Output {
+    let mut child = Command::new(BIN)
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("qrpose starts");
+    if let Some(input) = stdin {
+        child
+            .stdin
+            .take()
+            .expect("stdin")
+            .write_all(input.as_bytes())
+            .expect("write stdin");
+    }
+    drop(child.stdin.take());
+    child.wait_with_output().expect("qrpose finishes")
+}
+
+fn json(bytes: &[u8]) -> Value {
+    serde_json::from_slice(bytes)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(bytes)))
+}
+
+#[test]
+fn estimate_prints_the_pose_of_a_request_file() {
+    let out = run(&["estimate", FIXTURE], None);
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json(&out.stdout);
+    let z = v["position_mm"]["z"].as_f64().expect("position z");
+    assert!(
+        (z - 498.0).abs() < 5.0,
+        "a 100 px wide 50 mm code at f = 1000 px is ~500 mm away, got {z}"
+    );
+    assert_eq!(v["diagnostics"]["method"], "reprojection");
+    assert_eq!(v["corners_mm"][2]["qr_corner"], "top_left");
+    assert_eq!(v["rotation"]["matrix"].as_array().map(Vec::len), Some(3));
+}
+
+#[test]
+fn estimate_reads_standard_input_and_gives_the_same_pose() {
+    let body = std::fs::read_to_string(FIXTURE).expect("fixture");
+    let from_stdin = json(&run(&["estimate", "-"], Some(&body)).stdout);
+    let from_file = json(&run(&["estimate", FIXTURE], None).stdout);
+    assert_eq!(from_stdin["position_mm"], from_file["position_mm"]);
+    assert_eq!(from_stdin["rotation"], from_file["rotation"]);
+}
+
+#[test]
+fn estimate_refuses_bad_input_with_a_problem_document_and_exit_code_2() {
+    let cases = [
+        ("{", "malformed_json", None),
+        (
+            r#"{"corners_px": [[1,1],[2,1],[2,2]], "camera": {"fx_px": 1000, "fy_px": 1000, "cx_px": 0, "cy_px": 0}, "marker": {"size_mm": 50}}"#,
+            "corner_count",
+            Some("/corners_px"),
+        ),
+        (
+            r#"{"corners_px": [[1,1],[2,1],[2,2],[1,2]], "camera": {"fx_px": 0, "fy_px": 1000, "cx_px": 0, "cy_px": 0}, "marker": {"size_mm": 50}}"#,
+            "invalid_camera_parameter",
+            Some("/camera/fx_px"),
+        ),
+    ];
+    for (body, code, field) in cases {
+        let out = run(&["estimate", "-"], Some(body));
+        assert_eq!(out.status.code(), Some(2), "{body}");
+        assert!(out.stdout.is_empty(), "{body}: nothing on stdout");
+        let problem = json(&out.stderr);
+        assert_eq!(problem["code"], code, "{body}");
+        assert_eq!(problem["field"].as_str(), field, "{body}");
+        assert_eq!(
+            problem["status"].as_u64().map(|s| s / 100),
+            Some(4),
+            "{body}"
+        );
+    }
+}
+
+#[test]
+fn estimate_reports_a_missing_file_as_a_failure() {
+    let out = run(&["estimate", "/nonexistent/request.json"], None);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read"));
+}
+
+#[test]
+fn simulate_prints_spec_json_for_a_tiny_grid() {
+    let out = run(
+        &[
+            "simulate",
+            "--method",
+            "depth-newton",
+            "--sets",
+            "X-0-0,0-0-Z",
+            "--distances-mm",
+            "500,100",
+            "--stride",
+            "10",
+            "--format",
+            "json",
+        ],
+        None,
+    );
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json(&out.stdout);
+    assert_eq!(v["method"], "depth-newton");
+    assert_eq!(
+        v["convergence_pct"]["X-0-0"],
+        serde_json::json!([100.0, 100.0])
+    );
+    assert_eq!(
+        v["coverage_pct"]["0-0-Z"],
+        serde_json::json!([100.0, 100.0])
+    );
+    assert_eq!(v["overall_convergence_pct"], 100.0);
+}
+
+#[test]
+fn simulate_writes_heatmaps_and_max_angles() {
+    let dir = std::env::temp_dir().join(format!("qrpose-heatmaps-{}", std::process::id()));
+    let out = run(
+        &[
+            "simulate",
+            "--method",
+            "paper",
+            "--sets",
+            "5-5-Z",
+            "--distances-mm",
+            "100",
+            "--stride",
+            "5",
+            "--format",
+            "csv",
+            "--out",
+            dir.to_str().expect("utf-8 path"),
+        ],
+        None,
+    );
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = String::from_utf8_lossy(&out.stdout);
+    assert!(csv.starts_with("method,set,distance_mm,convergence_pct,coverage_pct,paper_convergence_pct\npaper,5-5-Z,100,"), "{csv}");
+    assert!(
+        csv.trim_end().ends_with(",96.37"),
+        "the paper's Table 10 value sits beside ours: {csv}"
+    );
+    let svg = std::fs::read_to_string(dir.join("paper_5-5-Z_100mm.svg")).expect("panel heatmap");
+    assert!(svg.contains("<svg") && svg.contains("5-5-Z at 100 mm"));
+    assert!(dir.join("paper_overview_100mm.svg").exists());
+    let angles = std::fs::read_to_string(dir.join("max_angles.csv")).expect("max angles");
+    assert_eq!(
+        angles.lines().count(),
+        1 + 5 * 5,
+        "header and 5 × 5 positions"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn simulate_tables_prints_every_paper_case() {
+    let out = run(&["simulate", "--tables"], None);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    for table in 5..=9 {
+        assert!(text.contains(&format!("Table {table}:")), "Table {table}");
+    }
+    assert_eq!(text.lines().filter(|l| l.starts_with("5-5-Z")).count(), 5);
+}
+
+#[test]
+fn simulate_refuses_an_unknown_set() {
+    let out = run(&["simulate", "--sets", "Q-0-0"], None);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown rotation set"));
+}
