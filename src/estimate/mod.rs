@@ -15,6 +15,7 @@ pub mod depth_newton;
 pub mod fit;
 pub mod ippe;
 pub mod iterative;
+pub mod lm;
 pub mod refine;
 
 use crate::geometry::{

@@ -11,7 +11,7 @@
 //! With independent Gaussian corner noise of σ px per coordinate, the pose covariance is
 //! σ²·(JᵀJ)⁻¹ in the same parametrisation (radians, then mm).
 
-use super::ippe::CentredPose;
+use super::{ippe::CentredPose, lm};
 use crate::geometry::frames::NormalizedPoint;
 use nalgebra::{Matrix3, Matrix6, Rotation3, SMatrix, Vector3, Vector6};
 
@@ -19,21 +19,10 @@ use nalgebra::{Matrix3, Matrix6, Rotation3, SMatrix, Vector3, Vector6};
 /// end the refinement as converged.
 pub const STEP_TOL: f64 = 1e-12;
 
-/// An accepted step that lowers the cost by less than this fraction ends the refinement as
-/// converged. Near-frontal views make the minimum nearly singular, so LM creeps linearly
-/// there; at this point the remaining parameter error is ~1e-5 of its standard deviation.
-pub const COST_DECREASE_TOL_REL: f64 = 1e-10;
-
 /// A residual RMS below this many normalised units (1e-12 rad of viewing angle; 1e-9 px at
 /// fx = 1000 px) is the floor of double precision: the fit is exact and the search ends as
 /// converged, whatever the step.
 pub const RESIDUAL_FLOOR_NORMALISED: f64 = 1e-12;
-
-/// Starting damping relative to the diagonal of JᵀJ; the IPPE start is already close.
-const INITIAL_DAMPING: f64 = 1e-6;
-
-/// Damping beyond which no descent direction is left.
-const MAX_DAMPING: f64 = 1e12;
 
 /// Pixels per normalised unit, horizontally and vertically (fx, fy).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,12 +48,6 @@ pub struct Refined {
     pub jtj: Matrix6<f64>,
     /// Iteration number and pose after each accepted step, when asked for.
     pub pose_trace: Option<Vec<(u32, CentredPose)>>,
-}
-
-struct Linearisation {
-    cost: f64,
-    jtj: Matrix6<f64>,
-    jtr: Vector6<f64>,
 }
 
 fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
@@ -102,7 +85,7 @@ fn linearise(
     model: &[Vector3<f64>],
     rays: &[NormalizedPoint],
     s: PixelScale,
-) -> Linearisation {
+) -> lm::Linearisation<6> {
     let mut jtj = Matrix6::zeros();
     let mut jtr = Vector6::zeros();
     let mut total = 0.0;
@@ -128,16 +111,40 @@ fn linearise(
         jtr += j.transpose() * nalgebra::Vector2::new(residual[0], residual[1]);
         total += residual[0] * residual[0] + residual[1] * residual[1];
     }
-    Linearisation {
-        cost: total,
-        jtj,
-        jtr,
-    }
+    lm::Linearisation::gauss_newton(total, jtj, jtr)
 }
 
 /// √(Σ|Δ|² / N): the RMS distance between measured and projected points.
 fn rms_from_cost(cost: f64, points: usize) -> f64 {
     (cost / points.max(1) as f64).sqrt()
+}
+
+/// Pixel reprojection error of a pose as a least-squares problem in (δ rotation, centre).
+struct PoseProblem<'a> {
+    model: &'a [Vector3<f64>],
+    rays: &'a [NormalizedPoint],
+    scale: PixelScale,
+}
+
+impl lm::Problem<6> for PoseProblem<'_> {
+    type Point = CentredPose;
+    fn linearise(&self, pose: &CentredPose) -> lm::Linearisation<6> {
+        linearise(pose, self.model, self.rays, self.scale)
+    }
+    fn cost(&self, pose: &CentredPose) -> f64 {
+        cost(pose, self.model, self.rays, self.scale)
+    }
+    fn apply(&self, pose: &CentredPose, h: &Vector6<f64>) -> CentredPose {
+        CentredPose {
+            r: Rotation3::new(Vector3::new(h[0], h[1], h[2])) * pose.r,
+            centre_mm: pose.centre_mm + Vector3::new(h[3], h[4], h[5]),
+        }
+    }
+    fn is_small_step(&self, pose: &CentredPose, h: &Vector6<f64>) -> bool {
+        let rotation = h.fixed_rows::<3>(0).amax();
+        let centre = h.fixed_rows::<3>(3).amax();
+        rotation <= STEP_TOL && centre <= STEP_TOL * pose.centre_mm.norm()
+    }
 }
 
 /// Refines `start` by Levenberg-Marquardt on the pixel reprojection error of the centred
@@ -150,76 +157,26 @@ pub fn refine(
     max_iterations: u32,
     trace: bool,
 ) -> Refined {
-    let mut pose = start;
-    let mut lin = linearise(&pose, model, rays, scale);
-    let mut damping = INITIAL_DAMPING;
-    let mut pose_trace = trace.then(Vec::new);
-    let mut converged = false;
-    let mut iterations = 0;
-    if !lin.cost.is_finite() {
-        return Refined {
-            pose,
-            rms: f64::INFINITY,
-            iterations,
-            converged,
-            jtj: lin.jtj,
-            pose_trace,
-        };
-    }
     let floor_cost =
         (RESIDUAL_FLOOR_NORMALISED * scale.fx.max(scale.fy)).powi(2) * rays.len() as f64;
-    while iterations < max_iterations {
-        if lin.cost <= floor_cost {
-            converged = true;
-            break;
-        }
-        iterations += 1;
-        let mut a = lin.jtj;
-        for i in 0..6 {
-            a[(i, i)] += damping * lin.jtj[(i, i)].max(f64::MIN_POSITIVE);
-        }
-        let Some(step) = a.cholesky().map(|c| c.solve(&(-lin.jtr))) else {
-            break;
-        };
-        let delta_rot = Vector3::new(step[0], step[1], step[2]);
-        let delta_centre = Vector3::new(step[3], step[4], step[5]);
-        let small_step =
-            delta_rot.amax() <= STEP_TOL && delta_centre.amax() <= STEP_TOL * pose.centre_mm.norm();
-        let candidate = CentredPose {
-            r: Rotation3::new(delta_rot) * pose.r,
-            centre_mm: pose.centre_mm + delta_centre,
-        };
-        let cost_new = cost(&candidate, model, rays, scale);
-        if cost_new <= lin.cost {
-            let stalled = lin.cost - cost_new <= COST_DECREASE_TOL_REL * lin.cost;
-            pose = candidate;
-            lin = linearise(&pose, model, rays, scale);
-            damping = (damping / 10.0).max(INITIAL_DAMPING * 1e-6);
-            if let Some(t) = pose_trace.as_mut() {
-                t.push((iterations, pose));
-            }
-            if small_step || stalled {
-                converged = true;
-                break;
-            }
-        } else {
-            if small_step {
-                converged = true;
-                break;
-            }
-            damping *= 10.0;
-            if damping > MAX_DAMPING {
-                break;
-            }
-        }
-    }
+    let settings = lm::Settings {
+        max_iterations,
+        floor_cost,
+        trace,
+    };
+    let out = lm::minimise(&PoseProblem { model, rays, scale }, start, &settings);
+    let rms = if out.lin.cost.is_finite() {
+        rms_from_cost(out.lin.cost, rays.len())
+    } else {
+        f64::INFINITY
+    };
     Refined {
-        pose,
-        rms: rms_from_cost(lin.cost, rays.len()),
-        iterations,
-        converged,
-        jtj: lin.jtj,
-        pose_trace,
+        pose: out.point,
+        rms,
+        iterations: out.iterations,
+        converged: out.converged,
+        jtj: out.lin.jtj,
+        pose_trace: out.steps,
     }
 }
 

@@ -1,0 +1,241 @@
+//! One Levenberg-Marquardt driver for the two least-squares problems of qrpose (corner depths
+//! in `depth-newton`, the pose in `reprojection`).
+//!
+//! Cost C(x) = Σ r², gradient g = Jᵀr, step h from (H + μ·D) h = −g, where H is JᵀJ
+//! (Gauss-Newton) or the full Hessian JᵀJ + Σ r·∇²r (Newton), and D = diag(JᵀJ) (Marquardt's
+//! scaling, so parameters in radians and millimetres mix). A Newton step is taken where
+//! H + μ·D is positive definite; elsewhere (far from the minimum) the Gauss-Newton step with
+//! JᵀJ, which always is. The damping μ follows
+//! Nielsen's rule (Madsen, Nielsen & Tingleff, *Methods for Non-Linear Least Squares
+//! Problems*, 2004, Section 3.2): with the gain ratio ρ = (C(x) − C(x+h)) / hᵀ(μ·D·h − g), a
+//! step is accepted when ρ > 0 and then μ ← μ·max(1/3, 1 − (2ρ − 1)³), ν ← 2; otherwise
+//! μ ← μ·ν, ν ← 2ν. On the depth problem this needs a third of the iterations of the plain
+//! ×10 / ÷10 rule (see `docs/accuracy.md`).
+//!
+//! The search ends as **converged** when the fit is exact to double precision (cost below the
+//! problem's floor), the gradient vanishes, a step is negligible, or an accepted step lowers
+//! the cost by less than [`COST_DECREASE_TOL_REL`]; otherwise at `max_iterations`, not
+//! converged.
+
+use nalgebra::{SMatrix, SVector};
+
+/// An accepted step that lowers the cost by less than this fraction ends the search: the
+/// remaining parameter error is then ~1e-5 of its standard deviation.
+pub const COST_DECREASE_TOL_REL: f64 = 1e-10;
+
+/// |gᵢ| ≤ this × √(C · (JᵀJ)ᵢᵢ) for every i (the cosine between the residual and each
+/// Jacobian column) means the gradient vanishes.
+pub const GRADIENT_TOL: f64 = 1e-10;
+
+/// Starting damping, relative to the diagonal of JᵀJ; both starts are close to the answer.
+const INITIAL_DAMPING: f64 = 1e-6;
+
+/// Cost, curvature and gradient at a point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Linearisation<const N: usize> {
+    /// Σ r².
+    pub cost: f64,
+    /// JᵀJ, Gauss-Newton's curvature.
+    pub jtj: SMatrix<f64, N, N>,
+    /// The full Hessian JᵀJ + Σ r·∇²r, when the problem provides it.
+    pub newton: Option<SMatrix<f64, N, N>>,
+    /// Jᵀr.
+    pub jtr: SVector<f64, N>,
+}
+
+impl<const N: usize> Linearisation<N> {
+    /// The Gauss-Newton linearisation.
+    pub fn gauss_newton(cost: f64, jtj: SMatrix<f64, N, N>, jtr: SVector<f64, N>) -> Self {
+        Self {
+            cost,
+            jtj,
+            newton: None,
+            jtr,
+        }
+    }
+
+    /// The step for damping μ with scale `d`, and the curvature it used: Newton's where that
+    /// system is positive definite, else Gauss-Newton's.
+    fn step(&self, mu: f64, d: &SVector<f64, N>) -> Option<SVector<f64, N>> {
+        let damping = SMatrix::<f64, N, N>::from_diagonal(&(d * mu));
+        self.newton
+            .and_then(|h| (h + damping).cholesky())
+            .or_else(|| (self.jtj + damping).cholesky())
+            .map(|c| c.solve(&(-self.jtr)))
+    }
+}
+
+/// A least-squares problem in N parameters.
+pub trait Problem<const N: usize> {
+    /// A point of the search space.
+    type Point: Copy;
+    /// Cost and normal equations at `x`.
+    fn linearise(&self, x: &Self::Point) -> Linearisation<N>;
+    /// Σ r² at `x`; ∞ where the point is infeasible (e.g. behind the camera).
+    fn cost(&self, x: &Self::Point) -> f64;
+    /// `x` moved by `h`.
+    fn apply(&self, x: &Self::Point, h: &SVector<f64, N>) -> Self::Point;
+    /// Whether `h` is too small to matter at `x`.
+    fn is_small_step(&self, x: &Self::Point, h: &SVector<f64, N>) -> bool;
+}
+
+/// Limits of one search.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    /// Iteration limit (accepted and rejected steps).
+    pub max_iterations: u32,
+    /// A cost at or below this is an exact fit.
+    pub floor_cost: f64,
+    /// Keep every accepted point.
+    pub trace: bool,
+}
+
+/// Where a search ended.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome<P, const N: usize> {
+    /// The final point.
+    pub point: P,
+    /// Cost and normal equations there.
+    pub lin: Linearisation<N>,
+    /// Iterations run.
+    pub iterations: u32,
+    /// Whether a convergence criterion was met.
+    pub converged: bool,
+    /// Iteration number and point after each accepted step, when asked for.
+    pub steps: Option<Vec<(u32, P)>>,
+}
+
+fn gradient_vanishes<const N: usize>(lin: &Linearisation<N>) -> bool {
+    (0..N).all(|i| lin.jtr[i].abs() <= GRADIENT_TOL * (lin.cost * lin.jtj[(i, i)]).sqrt())
+}
+
+/// Minimises the problem's cost from `start`.
+pub fn minimise<Q: Problem<N>, const N: usize>(
+    problem: &Q,
+    start: Q::Point,
+    settings: &Settings,
+) -> Outcome<Q::Point, N> {
+    let mut x = start;
+    let mut lin = problem.linearise(&x);
+    let mut mu = INITIAL_DAMPING;
+    let mut nu = 2.0;
+    let mut steps = settings.trace.then(Vec::new);
+    let mut iterations = 0;
+    let mut converged = false;
+    if !lin.cost.is_finite() {
+        return Outcome {
+            point: x,
+            lin,
+            iterations,
+            converged,
+            steps,
+        };
+    }
+    while iterations < settings.max_iterations {
+        if lin.cost <= settings.floor_cost || gradient_vanishes(&lin) {
+            converged = true;
+            break;
+        }
+        iterations += 1;
+        let d = lin.jtj.diagonal().map(|s| s.max(f64::MIN_POSITIVE));
+        let Some(h) = lin.step(mu, &d) else {
+            mu *= nu;
+            nu *= 2.0;
+            continue;
+        };
+        let small = problem.is_small_step(&x, &h);
+        let candidate = problem.apply(&x, &h);
+        let cost_new = problem.cost(&candidate);
+        let predicted = h.dot(&(d.component_mul(&h) * mu - lin.jtr));
+        let rho = if predicted > 0.0 {
+            (lin.cost - cost_new) / predicted
+        } else {
+            -1.0
+        };
+        if cost_new.is_finite() && rho > 0.0 {
+            let stalled = lin.cost - cost_new <= COST_DECREASE_TOL_REL * lin.cost;
+            x = candidate;
+            lin = problem.linearise(&x);
+            mu *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
+            nu = 2.0;
+            if let Some(s) = steps.as_mut() {
+                s.push((iterations, x));
+            }
+            if small || stalled {
+                converged = true;
+                break;
+            }
+        } else {
+            // A step too small to lower the cost is rounding noise: this is the minimum.
+            if small {
+                converged = true;
+                break;
+            }
+            mu *= nu;
+            nu *= 2.0;
+        }
+    }
+    Outcome {
+        point: x,
+        lin,
+        iterations,
+        converged,
+        steps,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rosenbrock's valley as residuals r = (10(y − x²), 1 − x): minimum (1, 1), cost 0.
+    struct Rosenbrock;
+
+    impl Problem<2> for Rosenbrock {
+        type Point = [f64; 2];
+        fn linearise(&self, p: &[f64; 2]) -> Linearisation<2> {
+            let r = SVector::<f64, 2>::new(10.0 * (p[1] - p[0] * p[0]), 1.0 - p[0]);
+            let j = SMatrix::<f64, 2, 2>::new(-20.0 * p[0], 10.0, -1.0, 0.0);
+            Linearisation::gauss_newton(r.norm_squared(), j.transpose() * j, j.transpose() * r)
+        }
+        fn cost(&self, p: &[f64; 2]) -> f64 {
+            (10.0 * (p[1] - p[0] * p[0])).powi(2) + (1.0 - p[0]).powi(2)
+        }
+        fn apply(&self, p: &[f64; 2], h: &SVector<f64, 2>) -> [f64; 2] {
+            [p[0] + h[0], p[1] + h[1]]
+        }
+        fn is_small_step(&self, _: &[f64; 2], h: &SVector<f64, 2>) -> bool {
+            h.amax() < 1e-15
+        }
+    }
+
+    #[test]
+    fn finds_the_bottom_of_rosenbrocks_valley() {
+        let settings = Settings {
+            max_iterations: 100,
+            floor_cost: 1e-28,
+            trace: true,
+        };
+        let out = minimise(&Rosenbrock, [-1.2, 1.0], &settings);
+        assert!(out.converged, "{out:?}");
+        assert!(
+            (out.point[0] - 1.0).abs() < 1e-9 && (out.point[1] - 1.0).abs() < 1e-9,
+            "{:?}",
+            out.point
+        );
+        let steps = out.steps.expect("trace");
+        assert!(!steps.is_empty() && steps.windows(2).all(|w| w[0].0 < w[1].0));
+    }
+
+    #[test]
+    fn stops_unconverged_at_the_iteration_limit() {
+        let settings = Settings {
+            max_iterations: 2,
+            floor_cost: 0.0,
+            trace: false,
+        };
+        let out = minimise(&Rosenbrock, [-1.2, 1.0], &settings);
+        assert!(!out.converged);
+        assert_eq!(out.iterations, 2);
+    }
+}
