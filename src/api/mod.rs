@@ -27,7 +27,9 @@ pub fn estimate_corners(request: &CornersRequest) -> Result<PoseResponse, Proble
     let estimate = estimate_pose(&valid.quad, &s.camera, &s.marker, &s.params)
         .map_err(|e| problem_from_estimate_error(e, valid.corners_pointer))?;
     let elapsed_us = started.elapsed().as_secs_f64() * 1e6;
-    Ok(PoseResponse::new(&estimate, &s.camera, elapsed_us))
+    Ok(PoseResponse::new(
+        &estimate, &s.camera, &s.marker, elapsed_us,
+    ))
 }
 
 #[cfg(test)]

@@ -4,9 +4,10 @@ use crate::estimate::{Ambiguity, Diagnostics, Method, PoseEstimate, TraceStep, W
 use crate::geometry::{
     camera::{Camera, ImageUnit},
     euler::{EulerXyz, quaternion_wxyz},
-    marker::Corner,
+    frames::MarkerPoint,
+    marker::{Corner, Marker},
 };
-use nalgebra::Vector3;
+use nalgebra::{Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
@@ -72,9 +73,15 @@ pub struct RotationDto {
     pub quaternion_wxyz: [f64; 4],
 }
 
-/// The other pose of the planar ambiguity (`reprojection` only).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+/// The other pose of the planar ambiguity (`reprojection` only): the same four corners seen
+/// as a square tilted the other way. Near-frontal and small or distant markers can make the
+/// two fit about equally well.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct AmbiguityDto {
+    /// The alternative pose's marker centre, camera frame, mm.
+    pub alternative_position_mm: Vec3Mm,
+    /// The alternative pose's orientation.
+    pub alternative_rotation: RotationDto,
     /// Reprojection RMS of the alternative pose after its own refinement, px; null for an
     /// image-plane-mm camera without a pixel size.
     pub alternative_rms_px: Option<f64>,
@@ -82,8 +89,15 @@ pub struct AmbiguityDto {
     pub ratio: f64,
     /// Angle between the two poses' rotations, degrees.
     pub rotation_difference_deg: f64,
-    /// True when `ratio` ≥ 0.6 and the poses differ by more than 0.1°: the reported pose may
-    /// be the mirror image of the true one; trust it only with other evidence.
+    /// Probability that the alternative, not the reported pose, is the true one, given
+    /// Gaussian corner noise of `solver.corner_sigma_px` (calibrated: see docs/accuracy.md);
+    /// 0 when both candidates are one pose; null for an image-plane-mm camera without a
+    /// pixel size.
+    pub alternative_probability: Option<f64>,
+    /// True when the poses differ by more than 0.1° and `alternative_probability` ≥ 0.01,
+    /// i.e. `ratio` ≥ RMS_best / √(RMS_best² + ½·σ²·ln 99) (without pixel units: `ratio` ≥
+    /// 0.3). The reported pose may then be the mirror image of the true one: use it only with
+    /// other evidence, e.g. the alternative that agrees with the previous frame.
     pub ambiguous: bool,
 }
 
@@ -179,8 +193,13 @@ pub struct DiagnosticsDto {
     "diagnostics": {"method": "reprojection", "converged": true, "iterations": 2,
                     "convergence_error_mm": null, "side_residuals_mm": null,
                     "reprojection_rms_px": 0.0,
-                    "ambiguity": {"alternative_rms_px": 0.84, "ratio": 0.0,
-                                  "rotation_difference_deg": 3.1, "ambiguous": false},
+                    "ambiguity": {"alternative_position_mm": {"x": 24.1, "y": 10.3, "z": 502.2},
+                                  "alternative_rotation": {"euler_xyz_deg": {"alpha": 2.9, "beta": -1.2, "gamma": 0.1},
+                                      "matrix": [[0.9998, -0.0017, -0.0209], [0.0028, 0.9987, 0.0506], [0.0208, -0.0506, 0.9985]],
+                                      "quaternion_wxyz": [0.9996, -0.0253, -0.0104, 0.0011]},
+                                  "alternative_rms_px": 0.84, "ratio": 0.0,
+                                  "rotation_difference_deg": 3.1,
+                                  "alternative_probability": 0.0, "ambiguous": false},
                     "covariance": null, "trace": null, "warnings": [], "elapsed_us": 4.2}
 }))]
 pub struct PoseResponse {
@@ -206,8 +225,21 @@ fn px_value(value: f64, camera: &Camera) -> Option<f64> {
     (camera.unit() == ImageUnit::Pixel).then_some(value)
 }
 
+impl RotationDto {
+    /// Euler angles, matrix and quaternion of a rotation.
+    pub fn from_rotation(r: &Rotation3<f64>) -> Self {
+        let [alpha, beta, gamma] = EulerXyz::from_rotation(r).to_degrees();
+        let m = r.matrix();
+        Self {
+            euler_xyz_deg: EulerXyzDeg { alpha, beta, gamma },
+            matrix: std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)])),
+            quaternion_wxyz: quaternion_wxyz(r),
+        }
+    }
+}
+
 impl DiagnosticsDto {
-    fn new(d: &Diagnostics, camera: &Camera, elapsed_us: f64) -> Self {
+    fn new(d: &Diagnostics, camera: &Camera, marker_centre: &MarkerPoint, elapsed_us: f64) -> Self {
         Self {
             method: d.method.as_str().to_owned(),
             converged: d.converged,
@@ -216,9 +248,12 @@ impl DiagnosticsDto {
             side_residuals_mm: d.side_residuals_mm,
             reprojection_rms_px: d.reprojection_rms.and_then(|rms| px_value(rms, camera)),
             ambiguity: d.ambiguity.map(|a: Ambiguity| AmbiguityDto {
+                alternative_position_mm: a.alternative.transform(marker_centre).0.coords.into(),
+                alternative_rotation: RotationDto::from_rotation(&a.alternative.rotation()),
                 alternative_rms_px: px_value(a.alternative_rms, camera).filter(|v| v.is_finite()),
                 ratio: a.ratio,
                 rotation_difference_deg: a.rotation_difference_rad.to_degrees(),
+                alternative_probability: a.alternative_probability,
                 ambiguous: a.ambiguous,
             }),
             covariance: d.covariance.map(|c| CovarianceDto {
@@ -243,10 +278,7 @@ impl DiagnosticsDto {
 
 impl PoseResponse {
     /// The wire form of an estimate.
-    pub fn new(estimate: &PoseEstimate, camera: &Camera, elapsed_us: f64) -> Self {
-        let r = estimate.pose.rotation();
-        let [alpha, beta, gamma] = EulerXyz::from_rotation(&r).to_degrees();
-        let m = r.matrix();
+    pub fn new(estimate: &PoseEstimate, camera: &Camera, marker: &Marker, elapsed_us: f64) -> Self {
         let corners_mm = Corner::ALL
             .iter()
             .zip(&estimate.corners_cam)
@@ -263,12 +295,13 @@ impl PoseResponse {
             reference_point_mm: estimate.pose.translation_mm().into(),
             distance_mm: estimate.centre_mm.norm(),
             corners_mm,
-            rotation: RotationDto {
-                euler_xyz_deg: EulerXyzDeg { alpha, beta, gamma },
-                matrix: std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)])),
-                quaternion_wxyz: quaternion_wxyz(&r),
-            },
-            diagnostics: DiagnosticsDto::new(&estimate.diagnostics, camera, elapsed_us),
+            rotation: RotationDto::from_rotation(&estimate.pose.rotation()),
+            diagnostics: DiagnosticsDto::new(
+                &estimate.diagnostics,
+                camera,
+                &marker.centre(),
+                elapsed_us,
+            ),
         }
     }
 

@@ -50,10 +50,21 @@ pub const MAX_TOLERANCE_MM: f64 = 1e6;
 /// Largest accepted corner noise, px.
 pub const MAX_CORNER_SIGMA_PX: f64 = 100.0;
 
-/// `ambiguity.ambiguous` is set when best RMS / alternative RMS reaches this ratio (and the
-/// alternative is a distinct pose). Chosen from `cargo run --release --example
-/// ambiguity_study`; see `docs/accuracy.md`.
-pub const AMBIGUITY_RATIO_THRESHOLD: f64 = 0.6;
+/// `ambiguity.ambiguous` is set when the alternative pose has at least this posterior
+/// probability of being the true one, given Gaussian corner noise of `corner_sigma_px` and
+/// equal priors: P = 1 / (1 + exp((SSR_alt − SSR_best) / 2σ²)), SSR the sum of squared corner
+/// residuals (px²). As a threshold on the ratio r = RMS_best / RMS_alt this reads
+/// r ≥ RMS_best / √(RMS_best² + ½·σ²·ln 99). Chosen with `cargo run --release --example
+/// ambiguity_study` (see `docs/accuracy.md`): the probability is calibrated (predicted and
+/// observed wrong-pick rates agree per bin at σ = 0.25-2 px), and at 1 % the poses left
+/// unflagged are wrong 0.05-0.13 % of the time, where a fixed ratio threshold flagging as
+/// many poses leaves 0.7-7.6 %.
+pub const AMBIGUITY_PROBABILITY_THRESHOLD: f64 = 0.01;
+
+/// For cameras in image-plane millimetres without a pixel size the noise in pixels is
+/// unknown, so `ambiguous` falls back to ratio ≥ this (from the same study: at σ = 0.5 px it
+/// flags 47 % of poses and leaves 2.3 % wrong picks unflagged).
+pub const AMBIGUITY_FALLBACK_RATIO: f64 = 0.3;
 
 /// Two refined candidates whose rotations differ by less than this are one solution: picking
 /// either costs less than the noise does.
@@ -273,14 +284,20 @@ pub struct TraceStep {
 /// The other candidate of the planar ambiguity, after its own refinement.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ambiguity {
+    /// The alternative pose (translation: P2, mm).
+    pub alternative: MarkerToCamera,
     /// Its reprojection RMS, image units.
     pub alternative_rms: f64,
     /// Best RMS / alternative RMS, in [0, 1]; near 1 when the two cannot be told apart.
     pub ratio: f64,
     /// Angle between the two rotations, radians.
     pub rotation_difference_rad: f64,
-    /// Ratio ≥ [`AMBIGUITY_RATIO_THRESHOLD`] and the rotations differ by more than
-    /// [`DISTINCT_ROTATION_DEG`].
+    /// Posterior probability that the alternative is the true pose, for the stated corner
+    /// noise (pixel cameras only); 0 when the two candidates are one pose.
+    pub alternative_probability: Option<f64>,
+    /// The rotations differ by more than [`DISTINCT_ROTATION_DEG`] and the alternative's
+    /// probability reaches [`AMBIGUITY_PROBABILITY_THRESHOLD`] (or, without pixel units, the
+    /// ratio reaches [`AMBIGUITY_FALLBACK_RATIO`]).
     pub ambiguous: bool,
 }
 
@@ -618,17 +635,36 @@ fn solve_planar(
         });
     }
     let rotation_difference_rad = angle_between(&best.pose.r, &other.pose.r);
+    let distinct = rotation_difference_rad.to_degrees() > DISTINCT_ROTATION_DEG;
     let ratio = if other.rms > 0.0 {
         (best.rms / other.rms).clamp(0.0, 1.0)
     } else {
         1.0
     };
+    let alternative_probability = match camera.unit() {
+        ImageUnit::Pixel if distinct => Some(alternative_probability(
+            best.rms,
+            other.rms,
+            rays.len(),
+            params.corner_sigma_px,
+        )),
+        ImageUnit::Pixel => Some(0.0),
+        ImageUnit::ImagePlaneMm => None,
+    };
+    let ambiguous = distinct
+        && match alternative_probability {
+            Some(p) => p >= AMBIGUITY_PROBABILITY_THRESHOLD,
+            None => ratio >= AMBIGUITY_FALLBACK_RATIO,
+        };
+    let pose_of =
+        |p: &ippe::CentredPose| MarkerToCamera::new(p.r, p.centre_mm - p.r * model.origin_mm);
     let ambiguity = Ambiguity {
+        alternative: pose_of(&other.pose),
         alternative_rms: other.rms,
         ratio,
         rotation_difference_rad,
-        ambiguous: ratio >= AMBIGUITY_RATIO_THRESHOLD
-            && rotation_difference_rad.to_degrees() > DISTINCT_ROTATION_DEG,
+        alternative_probability,
+        ambiguous,
     };
     // The covariance is of the model origin; move it to the marker centre: c = o + R·(centre − origin).
     let to_centre = marker.centre().0.coords - model.origin_mm;
@@ -641,8 +677,6 @@ fn solve_planar(
         }),
         ImageUnit::ImagePlaneMm => None,
     };
-    let pose_of =
-        |p: &ippe::CentredPose| MarkerToCamera::new(p.r, p.centre_mm - p.r * model.origin_mm);
     let pose = pose_of(&best.pose);
     let corners_cam = marker.object_points().map(|m| pose.transform(&m));
     let trace = best.pose_trace.as_ref().map(|steps| {
@@ -681,6 +715,14 @@ fn solve_planar(
             warnings: Vec::new(),
         },
     })
+}
+
+/// Posterior probability that the alternative (RMS `alternative_rms`) rather than the best
+/// candidate (RMS `best_rms`) is the true pose, for `points` points with Gaussian noise of
+/// `sigma` per coordinate and equal priors: 1 / (1 + exp(ΔSSR / 2σ²)), SSR = points · RMS².
+fn alternative_probability(best_rms: f64, alternative_rms: f64, points: usize, sigma: f64) -> f64 {
+    let delta_ssr = points as f64 * (alternative_rms.powi(2) - best_rms.powi(2));
+    1.0 / (1.0 + (delta_ssr / (2.0 * sigma * sigma)).exp())
 }
 
 /// Whether refined candidate `a` beats `b`: the lower RMS, except that RMS values within
