@@ -78,8 +78,13 @@ pub fn parallelogram_depths_mm(rays: &[NormalizedPoint; 4], marker: &Marker) -> 
     let cols = [q[0], -q[1], q[2], -q[3]];
     // Null vector of the 3×4 matrix [q1 −q2 q3 −q4]: its signed 3×3 minors.
     let minor = |skip: usize| {
-        let m: Vec<Vector3<f64>> = (0..4).filter(|&c| c != skip).map(|c| cols[c]).collect();
-        Matrix3::from_columns(&m).determinant()
+        let [a, b, c] = match skip {
+            0 => [1, 2, 3],
+            1 => [0, 2, 3],
+            2 => [0, 1, 3],
+            _ => [0, 1, 2],
+        };
+        Matrix3::from_columns(&[cols[a], cols[b], cols[c]]).determinant()
     };
     let mut n = [minor(0), -minor(1), minor(2), -minor(3)];
     if n[0] < 0.0 {
@@ -191,29 +196,30 @@ pub fn solve(
     let settings = lm::Settings {
         max_iterations: params.max_iterations,
         floor_cost: (RESIDUAL_FLOOR_REL * marker.size_mm()).powi(2) * EDGES.len() as f64,
-        trace: true,
+        trace: params.trace,
     };
     let out = lm::minimise(&DepthProblem { rays, marker }, start, &settings);
-    let accepted = out.steps.unwrap_or_default();
-    let mut previous = start;
-    let trace: Vec<TraceStep> = accepted
-        .iter()
-        .map(|(iteration, z)| {
-            let e_c = depth_change_mm(z, &previous);
-            previous = *z;
-            TraceStep {
-                iteration: *iteration,
-                z_mm: *z,
-                convergence_error_mm: e_c,
-            }
-        })
-        .collect();
+    let trace = out.steps.map(|accepted| {
+        let mut previous = start;
+        accepted
+            .iter()
+            .map(|(iteration, z)| {
+                let e_c = depth_change_mm(z, &previous);
+                previous = *z;
+                TraceStep {
+                    iteration: *iteration,
+                    z_mm: *z,
+                    convergence_error_mm: e_c,
+                }
+            })
+            .collect()
+    });
     DepthSolution {
         z_mm: out.point,
         converged: out.converged,
         iterations: out.iterations,
-        convergence_error_mm: trace.last().map(|s| s.convergence_error_mm),
-        trace: params.trace.then_some(trace),
+        convergence_error_mm: out.previous.map(|p| depth_change_mm(&out.point, &p)),
+        trace,
     }
 }
 

@@ -125,7 +125,9 @@ pub fn ippe_rotations(j: &Matrix2<f64>, v: (f64, f64)) -> Option<[Rotation3<f64>
         let c1 = Vector3::new(rt[(0, 0)], rt[(1, 0)], sign * b0);
         let c2 = Vector3::new(rt[(0, 1)], rt[(1, 1)], sign * b1);
         let local = Matrix3::from_columns(&[c1, c2, c1.cross(&c2)]);
-        Rotation3::from_matrix(&(rv * local))
+        // Orthonormal by construction (unit columns; b1's sign makes c1 ⟂ c2 because A/γ has
+        // largest singular value 1), so no projection onto SO(3) is needed.
+        Rotation3::from_matrix_unchecked(rv * local)
     };
     Some([candidate(1.0), candidate(-1.0)])
 }

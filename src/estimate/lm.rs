@@ -101,6 +101,8 @@ pub struct Outcome<P, const N: usize> {
     pub iterations: u32,
     /// Whether a convergence criterion was met.
     pub converged: bool,
+    /// The point before the last accepted step, if any step was accepted.
+    pub previous: Option<P>,
     /// Iteration number and point after each accepted step, when asked for.
     pub steps: Option<Vec<(u32, P)>>,
 }
@@ -122,12 +124,14 @@ pub fn minimise<Q: Problem<N>, const N: usize>(
     let mut steps = settings.trace.then(Vec::new);
     let mut iterations = 0;
     let mut converged = false;
+    let mut previous = None;
     if !lin.cost.is_finite() {
         return Outcome {
             point: x,
             lin,
             iterations,
             converged,
+            previous,
             steps,
         };
     }
@@ -154,6 +158,7 @@ pub fn minimise<Q: Problem<N>, const N: usize>(
         };
         if cost_new.is_finite() && rho > 0.0 {
             let stalled = lin.cost - cost_new <= COST_DECREASE_TOL_REL * lin.cost;
+            previous = Some(x);
             x = candidate;
             lin = problem.linearise(&x);
             mu *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
@@ -180,6 +185,7 @@ pub fn minimise<Q: Problem<N>, const N: usize>(
         lin,
         iterations,
         converged,
+        previous,
         steps,
     }
 }
