@@ -5,6 +5,9 @@
 //! stderr); 1 anything else (I/O, internal).
 
 mod estimate;
+mod healthcheck;
+mod openapi;
+mod serve;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -26,11 +29,20 @@ pub struct Cli {
 pub enum Command {
     /// Estimate a pose: prints what `POST /v1/pose/corners` would return.
     Estimate(estimate::EstimateArgs),
+    /// Run the HTTP service (SPEC section 4) until SIGTERM or SIGINT.
+    Serve(qrpose::config::ServeArgs),
+    /// Print the OpenAPI document (what `openapi/openapi.json` holds).
+    Openapi,
+    /// Exit 0 when the service's /healthz answers 200 (for container health checks).
+    Healthcheck(healthcheck::HealthcheckArgs),
 }
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Estimate(args) => estimate::run(&args),
+        Command::Serve(args) => serve::run(args),
+        Command::Openapi => openapi::run(),
+        Command::Healthcheck(args) => healthcheck::run(&args),
     }
 }

@@ -1,0 +1,99 @@
+//! `qrpose serve`: the HTTP service on a tokio runtime sized by the settings.
+//!
+//! Prints `listening on http://ADDR` on standard output once the socket is bound (with
+//! `--addr 127.0.0.1:0`, ADDR has the port the system picked); logs go to standard error.
+//! SIGTERM or SIGINT starts a graceful shutdown; the exit code is then 0.
+
+use anyhow::Context;
+use qrpose::config::{ServeArgs, Settings};
+use qrpose::http::{self, AppState};
+use std::process::ExitCode;
+use std::time::Duration;
+
+/// How long the runtime waits for blocking threads (running estimations) when it stops.
+const RUNTIME_SHUTDOWN_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// Completes on the first SIGTERM or SIGINT.
+async fn shutdown_signal() {
+    let interrupt = async {
+        if let Err(e) = tokio::signal::ctrl_c().await {
+            tracing::error!(error = %e, "cannot listen for SIGINT");
+            std::future::pending::<()>().await;
+        }
+    };
+    let terminate = async {
+        use tokio::signal::unix::{SignalKind, signal};
+        match signal(SignalKind::terminate()) {
+            Ok(mut sigterm) => {
+                sigterm.recv().await;
+            }
+            Err(e) => {
+                tracing::error!(error = %e, "cannot listen for SIGTERM");
+                std::future::pending::<()>().await;
+            }
+        }
+    };
+    tokio::select! {
+        () = interrupt => tracing::info!("SIGINT received"),
+        () = terminate => tracing::info!("SIGTERM received"),
+    }
+}
+
+async fn serve(settings: Settings) -> anyhow::Result<()> {
+    let addr = settings.addr;
+    let state = AppState::new(settings).context("cannot build the service state")?;
+    let listener = tokio::net::TcpListener::bind(addr)
+        .await
+        .with_context(|| format!("cannot listen on {addr}"))?;
+    let bound = listener
+        .local_addr()
+        .context("cannot read the bound address")?;
+    println!("listening on http://{bound}");
+    tracing::info!(
+        addr = %bound,
+        max_concurrent_estimations = state.settings.max_concurrent_estimations.get(),
+        queue_length = state.settings.queue_length,
+        body_limit_bytes = state.settings.body_limit_bytes,
+        request_timeout_ms = state.settings.request_timeout.as_millis(),
+        "listening"
+    );
+    http::serve(listener, state, shutdown_signal())
+        .await
+        .context("the server failed")
+}
+
+/// Runs `serve`.
+pub fn run(args: ServeArgs) -> ExitCode {
+    let settings = match Settings::try_from(args) {
+        Ok(settings) => settings,
+        Err(e) => {
+            eprintln!("qrpose serve: {e}");
+            return ExitCode::from(super::EXIT_BAD_INPUT);
+        }
+    };
+    if let Err(e) = qrpose::telemetry::init(settings.log_format) {
+        eprintln!("qrpose serve: {e}");
+        return ExitCode::FAILURE;
+    }
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(settings.worker_threads.get())
+        .enable_all()
+        .build()
+    {
+        Ok(runtime) => runtime,
+        Err(e) => {
+            eprintln!("qrpose serve: cannot start the runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let result = runtime.block_on(serve(settings));
+    runtime.shutdown_timeout(RUNTIME_SHUTDOWN_TIMEOUT);
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!(error = format!("{e:#}"), "stopped");
+            eprintln!("qrpose serve: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
