@@ -141,6 +141,11 @@ impl Default for Settings {
     }
 }
 
+/// `duration` in whole milliseconds, for logs and messages (saturates at `u64::MAX`).
+pub fn millis(duration: Duration) -> u64 {
+    u64::try_from(duration.as_millis()).unwrap_or(u64::MAX)
+}
+
 /// The number of CPUs this process may use, 1 when unknown.
 fn default_threads() -> NonZeroUsize {
     std::thread::available_parallelism().unwrap_or(NonZeroUsize::MIN)

@@ -5,6 +5,7 @@
 //! `http::middleware`). Tests stay quiet unless they install a subscriber themselves.
 
 use crate::config::LogFormat;
+use std::io::IsTerminal;
 use tracing_subscriber::{
     EnvFilter, fmt::MakeWriter, layer::SubscriberExt, util::SubscriberInitExt,
 };
@@ -22,14 +23,16 @@ pub struct TelemetryError(#[from] tracing_subscriber::util::TryInitError);
 /// # Errors
 /// [`TelemetryError`] when a subscriber is already installed.
 pub fn init(format: LogFormat) -> Result<(), TelemetryError> {
-    init_with_writer(format, std::io::stderr)
+    let ansi = std::io::stderr().is_terminal();
+    init_with_writer(format, std::io::stderr, ansi)
 }
 
-/// Installs the global subscriber writing to `writer` (tests pass a test writer).
+/// Installs the global subscriber writing to `writer` (tests pass their own), with colours
+/// in text lines when `ansi`.
 ///
 /// # Errors
 /// [`TelemetryError`] when a subscriber is already installed.
-pub fn init_with_writer<W>(format: LogFormat, writer: W) -> Result<(), TelemetryError>
+pub fn init_with_writer<W>(format: LogFormat, writer: W, ansi: bool) -> Result<(), TelemetryError>
 where
     W: for<'w> MakeWriter<'w> + Send + Sync + 'static,
 {
@@ -38,7 +41,11 @@ where
     let registry = tracing_subscriber::registry().with(filter);
     match format {
         LogFormat::Text => registry
-            .with(tracing_subscriber::fmt::layer().with_writer(writer))
+            .with(
+                tracing_subscriber::fmt::layer()
+                    .with_ansi(ansi)
+                    .with_writer(writer),
+            )
             .try_init()?,
         LogFormat::Json => registry
             .with(

@@ -13,34 +13,23 @@ use std::time::Duration;
 /// How long the runtime waits for blocking threads (running estimations) when it stops.
 const RUNTIME_SHUTDOWN_TIMEOUT: Duration = Duration::from_secs(1);
 
-/// Completes on the first SIGTERM or SIGINT.
-async fn shutdown_signal() {
-    let interrupt = async {
-        if let Err(e) = tokio::signal::ctrl_c().await {
-            tracing::error!(error = %e, "cannot listen for SIGINT");
-            std::future::pending::<()>().await;
+/// A future completing on the first SIGTERM or SIGINT. The handlers are installed now, so a
+/// signal arriving right after the address is printed is not lost to the default action.
+fn shutdown_signal() -> anyhow::Result<impl std::future::Future<Output = ()>> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut sigterm = signal(SignalKind::terminate()).context("cannot listen for SIGTERM")?;
+    let mut sigint = signal(SignalKind::interrupt()).context("cannot listen for SIGINT")?;
+    Ok(async move {
+        tokio::select! {
+            _ = sigterm.recv() => tracing::info!("SIGTERM received"),
+            _ = sigint.recv() => tracing::info!("SIGINT received"),
         }
-    };
-    let terminate = async {
-        use tokio::signal::unix::{SignalKind, signal};
-        match signal(SignalKind::terminate()) {
-            Ok(mut sigterm) => {
-                sigterm.recv().await;
-            }
-            Err(e) => {
-                tracing::error!(error = %e, "cannot listen for SIGTERM");
-                std::future::pending::<()>().await;
-            }
-        }
-    };
-    tokio::select! {
-        () = interrupt => tracing::info!("SIGINT received"),
-        () = terminate => tracing::info!("SIGTERM received"),
-    }
+    })
 }
 
 async fn serve(settings: Settings) -> anyhow::Result<()> {
     let addr = settings.addr;
+    let shutdown = shutdown_signal()?;
     let state = AppState::new(settings).context("cannot build the service state")?;
     let listener = tokio::net::TcpListener::bind(addr)
         .await
@@ -54,10 +43,10 @@ async fn serve(settings: Settings) -> anyhow::Result<()> {
         max_concurrent_estimations = state.settings.max_concurrent_estimations.get(),
         queue_length = state.settings.queue_length,
         body_limit_bytes = state.settings.body_limit_bytes,
-        request_timeout_ms = state.settings.request_timeout.as_millis(),
+        request_timeout_ms = qrpose::config::millis(state.settings.request_timeout),
         "listening"
     );
-    http::serve(listener, state, shutdown_signal())
+    http::serve(listener, state, shutdown)
         .await
         .context("the server failed")
 }

@@ -82,7 +82,7 @@ impl ApiError {
     }
 
     /// 503: the request did not finish within `timeout_ms`.
-    pub fn timeout(timeout_ms: u128) -> Self {
+    pub fn timeout(timeout_ms: u64) -> Self {
         Self::new(
             ErrorCode::Timeout,
             format!("the request did not finish within {timeout_ms} ms"),

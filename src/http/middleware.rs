@@ -13,6 +13,7 @@
 
 use super::error::{ApiError, KEPT_HEADERS, is_problem};
 use super::metrics::{Metrics, UNMATCHED_ROUTE};
+use crate::config::millis;
 use axum::extract::{MatchedPath, Request, State};
 use axum::http::{HeaderName, HeaderValue};
 use axum::middleware::Next;
@@ -123,8 +124,8 @@ pub async fn enforce_timeout(
     match tokio::time::timeout(timeout, next.run(request)).await {
         Ok(response) => response,
         Err(_) => {
-            tracing::warn!(timeout_ms = timeout.as_millis(), "request timed out");
-            ApiError::timeout(timeout.as_millis()).into_response()
+            tracing::warn!(timeout_ms = millis(timeout), "request timed out");
+            ApiError::timeout(millis(timeout)).into_response()
         }
     }
 }

@@ -19,6 +19,7 @@ pub mod state;
 
 pub use state::AppState;
 
+use crate::config::millis;
 use axum::Router;
 use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::middleware::{from_fn, from_fn_with_state, map_request};
@@ -105,7 +106,7 @@ where
             shutdown.await;
             lifecycle.start_draining();
             tracing::info!(
-                grace_ms = grace.as_millis(),
+                grace_ms = millis(grace),
                 "shutting down: no new connections, finishing in-flight requests"
             );
             draining.cancel();
@@ -127,7 +128,7 @@ where
             tokio::time::sleep(grace).await;
         } => {
             tracing::warn!(
-                grace_ms = grace.as_millis(),
+                grace_ms = millis(grace),
                 "grace period over; dropping the connections still open"
             );
             Ok(())

@@ -1,0 +1,94 @@
+//! Graceful shutdown: stop accepting, finish in-flight requests, at most for the grace
+//! period. (SIGTERM and SIGINT on the real binary are exercised by `tests/curl_suite.rs`.)
+
+use crate::helpers::{eventually, one_worker, spawn_app_with, valid_request};
+use qrpose::config::Settings;
+use reqwest::StatusCode;
+use std::time::Duration;
+
+#[tokio::test]
+async fn in_flight_requests_finish_after_shutdown_begins() {
+    // Arrange: a request waiting for the only worker, which the test holds.
+    let app = spawn_app_with(one_worker(1)).await;
+    let slot = app
+        .state
+        .queue
+        .try_admit()
+        .expect("a free place")
+        .start()
+        .await
+        .expect("a free worker");
+    let in_flight = {
+        let client = app.client.clone();
+        let url = format!("{}/v1/pose/corners", app.address);
+        tokio::spawn(async move { client.post(url).json(&valid_request()).send().await })
+    };
+    let queue = app.state.queue.clone();
+    eventually("the request waits", || {
+        let waiting = queue.occupancy().waiting;
+        async move { waiting == 1 }
+    })
+    .await;
+
+    // Act
+    app.trigger_shutdown();
+    let lifecycle = app.state.lifecycle.clone();
+    eventually("the service drains", || {
+        let draining = lifecycle.is_draining();
+        async move { draining }
+    })
+    .await;
+    drop(slot);
+
+    // Assert
+    let response = in_flight.await.expect("the task").expect("an answer");
+    assert_eq!(response.status(), StatusCode::OK);
+    let address = app.address.clone();
+    app.stopped().await.expect("a clean stop");
+    let refused = reqwest::Client::builder()
+        .no_proxy()
+        .build()
+        .expect("a client")
+        .get(format!("{address}/healthz"))
+        .send()
+        .await;
+    assert!(refused.is_err(), "no new connections after the stop");
+}
+
+#[tokio::test]
+async fn the_grace_period_bounds_the_wait_for_stuck_requests() {
+    // Arrange: a request that cannot finish (the test holds the only worker), a short grace.
+    let app = spawn_app_with(Settings {
+        shutdown_grace: Duration::from_millis(100),
+        ..one_worker(1)
+    })
+    .await;
+    let slot = app
+        .state
+        .queue
+        .try_admit()
+        .expect("a free place")
+        .start()
+        .await
+        .expect("a free worker");
+    let stuck = {
+        let client = app.client.clone();
+        let url = format!("{}/v1/pose/corners", app.address);
+        tokio::spawn(async move { client.post(url).json(&valid_request()).send().await })
+    };
+    let queue = app.state.queue.clone();
+    eventually("the request waits", || {
+        let waiting = queue.occupancy().waiting;
+        async move { waiting == 1 }
+    })
+    .await;
+
+    // Act
+    app.trigger_shutdown();
+
+    // Assert: the server stops although the request is still stuck.
+    app.stopped().await.expect("a clean stop");
+    assert!(!stuck.is_finished(), "the stuck request was still waiting");
+    drop(slot);
+    stuck.abort();
+}
