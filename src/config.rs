@@ -61,7 +61,8 @@ pub struct ServeArgs {
     /// Async runtime threads (network I/O) [default: number of CPUs].
     #[arg(long, env = "QRPOSE_WORKER_THREADS")]
     pub worker_threads: Option<usize>,
-    /// Estimations running at once, each on its own blocking thread [default: number of CPUs].
+    /// Estimations running at once: the number of estimation worker threads [default: number
+    /// of CPUs].
     #[arg(long, env = "QRPOSE_MAX_CONCURRENT_ESTIMATIONS")]
     pub max_concurrent_estimations: Option<usize>,
     /// Requests that may wait for an estimation worker; when full, 503 `overloaded` at once.

@@ -10,7 +10,7 @@ use qrpose::http::{self, AppState};
 use std::process::ExitCode;
 use std::time::Duration;
 
-/// How long the runtime waits for blocking threads (running estimations) when it stops.
+/// How long the runtime waits for its remaining tasks when it stops.
 const RUNTIME_SHUTDOWN_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// A future completing on the first SIGTERM or SIGINT. The handlers are installed now, so a

@@ -13,6 +13,7 @@ use crate::api::problem::ErrorCode;
 use axum::body::{Body, Bytes, HttpBody};
 use axum::extract::{FromRequest, Request};
 use axum::http::{HeaderMap, header};
+use axum::response::{IntoResponse, Response};
 use std::pin::Pin;
 
 /// The media type `POST` bodies of the JSON endpoints must declare.
@@ -128,6 +129,16 @@ pub async fn read_body(request: Request, limit_bytes: usize) -> Result<Bytes, Bo
         buf.extend_from_slice(&data);
     }
     Ok(Bytes::from(buf))
+}
+
+/// A JSON body serialised elsewhere (on an estimation worker), sent as `application/json`.
+#[derive(Debug, Clone)]
+pub struct JsonBytes(pub Vec<u8>);
+
+impl IntoResponse for JsonBytes {
+    fn into_response(self) -> Response {
+        ([(header::CONTENT_TYPE, JSON)], self.0).into_response()
+    }
 }
 
 /// The raw body of a JSON request: content type checked and size limited. Parsing is left

@@ -5,7 +5,7 @@
 //! shutdown future completes, then drains in-flight requests for at most the configured grace
 //! period.
 //!
-//! CPU-bound work (parsing, estimating) runs on blocking threads behind the bounded
+//! CPU-bound work (parsing, estimating) runs on dedicated worker threads behind the bounded
 //! [`queue::EstimationQueue`]; see that module for the admission rules.
 
 pub mod error;
@@ -17,7 +17,7 @@ pub mod queue;
 pub mod routes;
 pub mod state;
 
-pub use state::AppState;
+pub use state::{AppState, StateError};
 
 use crate::config::millis;
 use axum::Router;

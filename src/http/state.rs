@@ -26,6 +26,17 @@ impl Lifecycle {
     }
 }
 
+/// Why the state could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum StateError {
+    /// The OpenAPI document could not be serialised (a derived document always can).
+    #[error("cannot render the OpenAPI document: {0}")]
+    OpenApi(#[from] serde_json::Error),
+    /// An estimation worker thread could not be spawned.
+    #[error("cannot start the estimation workers: {0}")]
+    Workers(#[from] std::io::Error),
+}
+
 /// The state shared by all handlers; cheap to clone.
 #[derive(Debug, Clone)]
 pub struct AppState {
@@ -45,14 +56,14 @@ impl AppState {
     /// Fresh state for `settings`: an empty queue and zeroed metrics.
     ///
     /// # Errors
-    /// Only if the OpenAPI document cannot be serialised (see [`openapi::openapi_json`]).
-    pub fn new(settings: Settings) -> Result<Self, serde_json::Error> {
+    /// [`StateError`] when a worker thread cannot be spawned.
+    pub fn new(settings: Settings) -> Result<Self, StateError> {
         let metrics = Arc::new(Metrics::new());
         let queue = EstimationQueue::new(
             settings.max_concurrent_estimations.get(),
             settings.queue_length,
             metrics.queue(),
-        );
+        )?;
         Ok(Self {
             settings: Arc::new(settings),
             queue,

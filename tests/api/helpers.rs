@@ -180,6 +180,57 @@ pub fn valid_request() -> Value {
     })
 }
 
+/// One estimation worker held busy by the test until [`Gate::release`] (or drop).
+pub struct Gate {
+    open: std::sync::mpsc::Sender<()>,
+    job: JoinHandle<Result<(), qrpose::http::error::ApiError>>,
+}
+
+impl Gate {
+    /// Lets the job finish and waits for it.
+    pub async fn release(self) {
+        self.open.send(()).expect("the job is waiting for the gate");
+        self.job
+            .await
+            .expect("the job's task")
+            .expect("the job ran");
+    }
+}
+
+/// Takes one estimation worker through the server's own queue: a job that waits for the
+/// test. Returns once the job runs.
+pub async fn occupy_worker(app: &TestApp) -> Gate {
+    let (open, gate) = std::sync::mpsc::channel::<()>();
+    let queue = app.state.queue.clone();
+    let running_before = queue.occupancy().running;
+    let job = tokio::spawn({
+        let queue = queue.clone();
+        async move {
+            queue
+                .run(move || {
+                    let _ = gate.recv();
+                })
+                .await
+        }
+    });
+    eventually("the test's job runs", || {
+        let running = queue.occupancy().running;
+        async move { running == running_before + 1 }
+    })
+    .await;
+    Gate { open, job }
+}
+
+/// Waits until the queue has `running` jobs running and `waiting` waiting.
+pub async fn queue_reaches(app: &TestApp, running: usize, waiting: usize) {
+    let queue = app.state.queue.clone();
+    eventually(&format!("{running} running, {waiting} waiting"), || {
+        let o = queue.occupancy();
+        async move { (o.running, o.waiting) == (running, waiting) }
+    })
+    .await;
+}
+
 /// Settings with one estimation worker and `queue_length` waiting places.
 pub fn one_worker(queue_length: usize) -> Settings {
     Settings {

@@ -1,8 +1,10 @@
 //! Saturation: a full estimation queue answers 503 `overloaded` at once, a request that
-//! waits too long 503 `timeout`, both with `Retry-After`. The test takes the workers itself
-//! through the server's own queue, so nothing depends on how fast an estimate is.
+//! waits too long 503 `timeout`, both with `Retry-After`. The test occupies the workers
+//! itself through the server's own queue, so nothing depends on how fast an estimate is.
 
-use crate::helpers::{assert_problem, eventually, one_worker, spawn_app_with, valid_request};
+use crate::helpers::{
+    assert_problem, occupy_worker, one_worker, queue_reaches, spawn_app_with, valid_request,
+};
 use qrpose::api::problem::ErrorCode;
 use qrpose::config::Settings;
 use reqwest::{StatusCode, header};
@@ -12,14 +14,7 @@ use std::time::Duration;
 async fn a_full_queue_answers_503_overloaded_with_retry_after() {
     // Arrange: one worker, no waiting places, and the worker taken.
     let app = spawn_app_with(one_worker(0)).await;
-    let slot = app
-        .state
-        .queue
-        .try_admit()
-        .expect("a free place")
-        .start()
-        .await
-        .expect("a free worker");
+    let gate = occupy_worker(&app).await;
 
     // Act
     let refused = app.post_corners(&valid_request()).await;
@@ -38,7 +33,7 @@ async fn a_full_queue_answers_503_overloaded_with_retry_after() {
     );
     app.assert_up("an overload").await;
 
-    drop(slot);
+    gate.release().await;
     let served = app.post_corners(&valid_request()).await;
     assert_eq!(
         served.status(),
@@ -48,21 +43,14 @@ async fn a_full_queue_answers_503_overloaded_with_retry_after() {
 }
 
 #[tokio::test]
-async fn a_request_waiting_past_the_timeout_answers_503_timeout_and_leaves_the_queue() {
+async fn a_request_waiting_past_the_timeout_answers_503_timeout() {
     // Arrange: one worker (taken) and one waiting place; a short timeout.
     let app = spawn_app_with(Settings {
         request_timeout: Duration::from_millis(200),
         ..one_worker(1)
     })
     .await;
-    let slot = app
-        .state
-        .queue
-        .try_admit()
-        .expect("a free place")
-        .start()
-        .await
-        .expect("a free worker");
+    let gate = occupy_worker(&app).await;
 
     // Act
     let timed_out = app.post_corners(&valid_request()).await;
@@ -71,14 +59,11 @@ async fn a_request_waiting_past_the_timeout_answers_503_timeout_and_leaves_the_q
     assert_eq!(timed_out.headers()[header::RETRY_AFTER], "1");
     let problem = assert_problem(timed_out, 503, ErrorCode::Timeout).await;
     assert!(problem.detail.contains("200 ms"), "{}", problem.detail);
-    let queue = app.state.queue.clone();
-    eventually("the timed-out request leaves the queue", || {
-        let waiting = queue.occupancy().waiting;
-        async move { waiting == 0 }
-    })
-    .await;
 
-    drop(slot);
+    // The abandoned job keeps its place until a worker reaches it and drops it unrun.
+    queue_reaches(&app, 1, 1).await;
+    gate.release().await;
+    queue_reaches(&app, 0, 0).await;
     let served = app.post_corners(&valid_request()).await;
     assert_eq!(
         served.status(),
@@ -89,16 +74,9 @@ async fn a_request_waiting_past_the_timeout_answers_503_timeout_and_leaves_the_q
 
 #[tokio::test]
 async fn queued_requests_are_served_in_turn_once_a_worker_frees() {
-    // Arrange: one worker (taken) and two waiting places.
+    // Arrange: one worker (taken) and two waiting places, both filled.
     let app = spawn_app_with(one_worker(2)).await;
-    let slot = app
-        .state
-        .queue
-        .try_admit()
-        .expect("a free place")
-        .start()
-        .await
-        .expect("a free worker");
+    let gate = occupy_worker(&app).await;
     let send = || {
         let client = app.client.clone();
         let url = format!("{}/v1/pose/corners", app.address);
@@ -106,12 +84,7 @@ async fn queued_requests_are_served_in_turn_once_a_worker_frees() {
     };
     let first = send();
     let second = send();
-    let queue = app.state.queue.clone();
-    eventually("both requests wait", || {
-        let waiting = queue.occupancy().waiting;
-        async move { waiting == 2 }
-    })
-    .await;
+    queue_reaches(&app, 1, 2).await;
     let readiness: serde_json::Value = app.get("/readyz").await.json().await.expect("JSON");
     assert_eq!(readiness["queue"]["waiting"], 2);
     assert_problem(
@@ -122,7 +95,7 @@ async fn queued_requests_are_served_in_turn_once_a_worker_frees() {
     .await;
 
     // Act
-    drop(slot);
+    gate.release().await;
 
     // Assert
     for request in [first, second] {

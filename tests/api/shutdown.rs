@@ -1,7 +1,9 @@
 //! Graceful shutdown: stop accepting, finish in-flight requests, at most for the grace
 //! period. (SIGTERM and SIGINT on the real binary are exercised by `tests/curl_suite.rs`.)
 
-use crate::helpers::{eventually, one_worker, spawn_app_with, valid_request};
+use crate::helpers::{
+    eventually, occupy_worker, one_worker, queue_reaches, spawn_app_with, valid_request,
+};
 use qrpose::config::Settings;
 use reqwest::StatusCode;
 use std::time::Duration;
@@ -10,25 +12,13 @@ use std::time::Duration;
 async fn in_flight_requests_finish_after_shutdown_begins() {
     // Arrange: a request waiting for the only worker, which the test holds.
     let app = spawn_app_with(one_worker(1)).await;
-    let slot = app
-        .state
-        .queue
-        .try_admit()
-        .expect("a free place")
-        .start()
-        .await
-        .expect("a free worker");
+    let gate = occupy_worker(&app).await;
     let in_flight = {
         let client = app.client.clone();
         let url = format!("{}/v1/pose/corners", app.address);
         tokio::spawn(async move { client.post(url).json(&valid_request()).send().await })
     };
-    let queue = app.state.queue.clone();
-    eventually("the request waits", || {
-        let waiting = queue.occupancy().waiting;
-        async move { waiting == 1 }
-    })
-    .await;
+    queue_reaches(&app, 1, 1).await;
 
     // Act
     app.trigger_shutdown();
@@ -38,7 +28,7 @@ async fn in_flight_requests_finish_after_shutdown_begins() {
         async move { draining }
     })
     .await;
-    drop(slot);
+    gate.release().await;
 
     // Assert
     let response = in_flight.await.expect("the task").expect("an answer");
@@ -63,25 +53,13 @@ async fn the_grace_period_bounds_the_wait_for_stuck_requests() {
         ..one_worker(1)
     })
     .await;
-    let slot = app
-        .state
-        .queue
-        .try_admit()
-        .expect("a free place")
-        .start()
-        .await
-        .expect("a free worker");
+    let gate = occupy_worker(&app).await;
     let stuck = {
         let client = app.client.clone();
         let url = format!("{}/v1/pose/corners", app.address);
         tokio::spawn(async move { client.post(url).json(&valid_request()).send().await })
     };
-    let queue = app.state.queue.clone();
-    eventually("the request waits", || {
-        let waiting = queue.occupancy().waiting;
-        async move { waiting == 1 }
-    })
-    .await;
+    queue_reaches(&app, 1, 1).await;
 
     // Act
     app.trigger_shutdown();
@@ -89,6 +67,6 @@ async fn the_grace_period_bounds_the_wait_for_stuck_requests() {
     // Assert: the server stops although the request is still stuck.
     app.stopped().await.expect("a clean stop");
     assert!(!stuck.is_finished(), "the stuck request was still waiting");
-    drop(slot);
     stuck.abort();
+    drop(gate);
 }

@@ -6,8 +6,12 @@ use crate::api::{
     request::CornersRequest,
     response::PoseResponse,
 };
-use crate::http::{error::ApiError, extract::JsonBody, state::AppState};
-use axum::{Json, extract::State};
+use crate::http::{
+    error::ApiError,
+    extract::{JsonBody, JsonBytes},
+    state::AppState,
+};
+use axum::extract::State;
 
 /// Estimate the pose of a QR code from its four corners.
 ///
@@ -69,15 +73,33 @@ use axum::{Json, extract::State};
 pub async fn pose_from_corners(
     State(state): State<AppState>,
     JsonBody(body): JsonBody,
-) -> Result<Json<PoseResponse>, ApiError> {
-    let estimate = state
-        .queue
-        .run(move || parse_json::<CornersRequest>(&body).and_then(|r| estimate_corners(&r)))
-        .await?;
-    let response = estimate.map_err(|p: Problem| ApiError::from(p))?;
-    let d = &response.diagnostics;
+) -> Result<JsonBytes, ApiError> {
+    let (json, outcome) = state.queue.run(move || estimate_to_json(&body)).await??;
     state
         .metrics
-        .observe_estimate(&d.method, d.iterations, d.converged);
-    Ok(Json(response))
+        .observe_estimate(&outcome.method, outcome.iterations, outcome.converged);
+    Ok(JsonBytes(json))
+}
+
+/// What the metrics need to know of an estimate.
+struct Outcome {
+    method: String,
+    iterations: u32,
+    converged: bool,
+}
+
+/// Parses, estimates and serialises, all on the estimation worker.
+fn estimate_to_json(body: &[u8]) -> Result<(Vec<u8>, Outcome), ApiError> {
+    let request = parse_json::<CornersRequest>(body)?;
+    let response = estimate_corners(&request)?;
+    let json = serde_json::to_vec(&response).map_err(ApiError::internal)?;
+    let d = response.diagnostics;
+    Ok((
+        json,
+        Outcome {
+            method: d.method,
+            iterations: d.iterations,
+            converged: d.converged,
+        },
+    ))
 }
