@@ -21,6 +21,10 @@ struct Server {
 
 impl Server {
     fn start(name: &str) -> Self {
+        Self::start_with(name, &[])
+    }
+
+    fn start_with(name: &str, extra_args: &[&str]) -> Self {
         let log = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("curl-suite-{name}.log"));
         let log_file = std::fs::File::create(&log).expect("a log file");
         let mut child = Command::new(env!("CARGO_BIN_EXE_qrpose"))
@@ -31,7 +35,10 @@ impl Server {
                 "--shutdown-grace-ms",
                 "5000",
             ])
+            .args(extra_args)
+            .env("RUST_LOG", "info")
             .env_remove("QRPOSE_ADDR")
+            .env_remove("QRPOSE_LOG_FORMAT")
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(log_file)
@@ -144,19 +151,47 @@ fn every_curl_script_passes_against_the_real_binary() {
 }
 
 #[test]
-fn sigint_stops_the_server_with_exit_code_0() {
-    let mut server = Server::start("sigint");
+fn sigint_stops_the_server_with_exit_code_0_and_json_logs_carry_the_request_id() {
+    let mut server = Server::start_with("sigint", &["--log-format", "json"]);
+    let curl = Command::new("curl")
+        .args([
+            "-sS",
+            "-o",
+            "/dev/null",
+            "-H",
+            "x-request-id: json-log-check",
+        ])
+        .arg(format!("{}/healthz", server.base_url))
+        .status()
+        .expect("curl runs");
+    assert!(curl.success());
 
     server.signal("INT");
 
     let status = server.wait();
-    assert_eq!(
-        status.code(),
-        Some(0),
-        "exit after SIGINT\n{}",
-        server.logs()
+    let logs = server.logs();
+    assert_eq!(status.code(), Some(0), "exit after SIGINT\n{logs}");
+    let lines: Vec<serde_json::Value> = logs
+        .lines()
+        .map(|line| serde_json::from_str(line).expect("every log line is JSON"))
+        .collect();
+    let request_lines: Vec<&serde_json::Value> = lines
+        .iter()
+        .filter(|l| l["span"]["request_id"] == "json-log-check")
+        .collect();
+    assert!(!request_lines.is_empty(), "{logs}");
+    assert!(
+        request_lines
+            .iter()
+            .any(|l| l["fields"]["status"] == 200 || l["fields"]["status"] == "200"),
+        "{logs}"
     );
-    assert!(server.logs().contains("SIGINT received"));
+    assert!(
+        lines
+            .iter()
+            .any(|l| l["fields"]["message"] == "SIGINT received"),
+        "{logs}"
+    );
 }
 
 #[test]

@@ -22,6 +22,9 @@ pub const JSON: &str = "application/json";
 /// At most this many bytes of an oversized body are read and discarded before the 413.
 pub const DRAIN_LIMIT_BYTES: usize = 64 * 1024 * 1024;
 
+/// At most this much is reserved before the body arrives, whatever `Content-Length` claims.
+const INITIAL_CAPACITY_BYTES: usize = 64 * 1024;
+
 /// Why a body could not be read.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum BodyError {
@@ -115,7 +118,8 @@ pub async fn read_body(request: Request, limit_bytes: usize) -> Result<Bytes, Bo
         return Err(too_large);
     }
     let mut body = request.into_body();
-    let mut buf = Vec::with_capacity(declared.unwrap_or(0));
+    // A declared length is only a claim: reserve at most a small amount up front.
+    let mut buf = Vec::with_capacity(declared.unwrap_or(0).min(INITIAL_CAPACITY_BYTES));
     while let Some(frame) = next_data(&mut body).await {
         let data = frame
             .map_err(|e| BodyError::Unreadable {

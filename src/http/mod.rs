@@ -21,7 +21,7 @@ pub use state::{AppState, StateError};
 
 use crate::config::millis;
 use axum::Router;
-use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::extract::{DefaultBodyLimit, Request};
 use axum::middleware::{from_fn, from_fn_with_state, map_request};
 use axum::serve::ListenerExt;
 use error::ApiError;
@@ -83,7 +83,7 @@ async fn not_found(request: Request) -> ApiError {
     ApiError::not_found(request.uri().path())
 }
 
-async fn method_not_allowed(State(_): State<AppState>, request: Request) -> ApiError {
+async fn method_not_allowed(request: Request) -> ApiError {
     ApiError::method_not_allowed(request.method().as_str(), request.uri().path())
 }
 
@@ -142,6 +142,7 @@ mod tests {
     use crate::api::problem::{ErrorCode, Problem};
     use crate::config::Settings;
     use axum::body::{Body, to_bytes};
+    use axum::extract::State;
     use axum::http::{Request as HttpRequest, StatusCode, header};
     use axum::routing::{get, post};
     use tower::ServiceExt;

@@ -176,7 +176,9 @@ impl EstimationQueue {
             }
             Err(_) => {
                 self.inner.metrics.rejected.inc();
-                tracing::warn!(capacity = self.inner.capacity, "estimation queue full");
+                // Debug, not warn: under overload a line per refusal would add to the load;
+                // the access log and `estimation_rejections_total` record every one.
+                tracing::debug!(capacity = self.inner.capacity, "estimation queue full");
                 Err(ApiError::overloaded(self.inner.capacity))
             }
         }
