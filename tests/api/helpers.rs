@@ -107,6 +107,22 @@ impl TestApp {
         request.send().await.expect("the server answers")
     }
 
+    /// Sends the valid corners request from a task of its own, for a test that must act
+    /// while the request is in flight.
+    pub fn post_corners_in_background(&self) -> JoinHandle<reqwest::Result<Response>> {
+        let request = self
+            .client
+            .post(format!("{}/v1/pose/corners", self.address))
+            .json(&valid_request());
+        tokio::spawn(request.send())
+    }
+
+    /// Panics unless a valid corners request is answered 200.
+    pub async fn assert_serves_corners(&self, after: &str) {
+        let status = self.post_corners(&valid_request()).await.status();
+        assert_eq!(status, StatusCode::OK, "corners after {after}");
+    }
+
     /// `GET /healthz`.
     pub async fn healthz(&self) -> Response {
         self.get("/healthz").await

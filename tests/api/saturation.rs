@@ -34,12 +34,7 @@ async fn a_full_queue_answers_503_overloaded_with_retry_after() {
     app.assert_up("an overload").await;
 
     gate.release().await;
-    let served = app.post_corners(&valid_request()).await;
-    assert_eq!(
-        served.status(),
-        StatusCode::OK,
-        "served once the worker is free"
-    );
+    app.assert_serves_corners("the worker is free").await;
 }
 
 #[tokio::test]
@@ -64,12 +59,7 @@ async fn a_request_waiting_past_the_timeout_answers_503_timeout() {
     queue_reaches(&app, 1, 1).await;
     gate.release().await;
     queue_reaches(&app, 0, 0).await;
-    let served = app.post_corners(&valid_request()).await;
-    assert_eq!(
-        served.status(),
-        StatusCode::OK,
-        "served once the worker is free"
-    );
+    app.assert_serves_corners("the worker is free").await;
 }
 
 #[tokio::test]
@@ -77,13 +67,8 @@ async fn queued_requests_are_served_in_turn_once_a_worker_frees() {
     // Arrange: one worker (taken) and two waiting places, both filled.
     let app = spawn_app_with(one_worker(2)).await;
     let gate = occupy_worker(&app).await;
-    let send = || {
-        let client = app.client.clone();
-        let url = format!("{}/v1/pose/corners", app.address);
-        tokio::spawn(async move { client.post(url).json(&valid_request()).send().await })
-    };
-    let first = send();
-    let second = send();
+    let first = app.post_corners_in_background();
+    let second = app.post_corners_in_background();
     queue_reaches(&app, 1, 2).await;
     let readiness: serde_json::Value = app.get("/readyz").await.json().await.expect("JSON");
     assert_eq!(readiness["queue"]["waiting"], 2);

@@ -1,9 +1,7 @@
 //! Graceful shutdown: stop accepting, finish in-flight requests, at most for the grace
 //! period. (SIGTERM and SIGINT on the real binary are exercised by `tests/curl_suite.rs`.)
 
-use crate::helpers::{
-    eventually, occupy_worker, one_worker, queue_reaches, spawn_app_with, valid_request,
-};
+use crate::helpers::{eventually, occupy_worker, one_worker, queue_reaches, spawn_app_with};
 use qrpose::config::Settings;
 use reqwest::StatusCode;
 use std::time::Duration;
@@ -13,11 +11,7 @@ async fn in_flight_requests_finish_after_shutdown_begins() {
     // Arrange: a request waiting for the only worker, which the test holds.
     let app = spawn_app_with(one_worker(1)).await;
     let gate = occupy_worker(&app).await;
-    let in_flight = {
-        let client = app.client.clone();
-        let url = format!("{}/v1/pose/corners", app.address);
-        tokio::spawn(async move { client.post(url).json(&valid_request()).send().await })
-    };
+    let in_flight = app.post_corners_in_background();
     queue_reaches(&app, 1, 1).await;
 
     // Act
@@ -54,11 +48,7 @@ async fn the_grace_period_bounds_the_wait_for_stuck_requests() {
     })
     .await;
     let gate = occupy_worker(&app).await;
-    let stuck = {
-        let client = app.client.clone();
-        let url = format!("{}/v1/pose/corners", app.address);
-        tokio::spawn(async move { client.post(url).json(&valid_request()).send().await })
-    };
+    let stuck = app.post_corners_in_background();
     queue_reaches(&app, 1, 1).await;
 
     // Act
