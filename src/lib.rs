@@ -6,11 +6,18 @@
 //! |---|---|
 //! | [`geometry`] | frames, camera and distortion, marker, corner quadrilaterals, Euler angles (core) |
 //! | [`estimate`] | pose from four corners: `paper`, `depth-newton`, `reprojection` (core) |
+//! | [`sim`] | the paper's simulation: grid, Table 10, heatmaps, Tables 5-9, noisy datasets |
 //! | [`api`] | wire types shared by the HTTP service and the CLI, and their validation |
+//! | [`config`] | the settings of `qrpose serve`: flags, environment fallbacks, validation |
+//! | [`telemetry`] | logging setup: text or JSON lines on standard error |
+//! | [`http`] | the HTTP service: routes, errors, queue, metrics, OpenAPI (the only axum code) |
 
 #![warn(missing_docs)]
 
 pub mod api;
+pub mod config;
 pub mod estimate;
 pub mod geometry;
+pub mod http;
 pub mod sim;
+pub mod telemetry;

@@ -67,6 +67,8 @@ pub enum ErrorCode {
     Overloaded,
     /// 503: the request took longer than the configured timeout.
     Timeout,
+    /// 503: the service is shutting down and takes no new work; retry on another instance.
+    ShuttingDown,
     /// 500: a fault of the service, never of the request.
     Internal,
 }
@@ -81,7 +83,7 @@ impl ErrorCode {
             MethodNotAllowed => 405,
             ImageTooLarge | PayloadTooLarge => 413,
             UnsupportedMediaType => 415,
-            Overloaded | Timeout => 503,
+            Overloaded | Timeout | ShuttingDown => 503,
             Internal => 500,
             _ => 422,
         }
@@ -119,6 +121,7 @@ impl ErrorCode {
             MethodNotAllowed => "Method not allowed",
             Overloaded => "Service overloaded",
             Timeout => "Request timed out",
+            ShuttingDown => "Shutting down",
             Internal => "Internal error",
         }
     }

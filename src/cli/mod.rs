@@ -5,6 +5,9 @@
 //! stderr); 1 anything else (I/O, internal).
 
 mod estimate;
+mod healthcheck;
+mod openapi;
+mod serve;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -29,6 +32,12 @@ pub enum Command {
     Estimate(estimate::EstimateArgs),
     /// Reproduce the paper's simulation (Table 10, Figures 8-12, Tables 5-9).
     Simulate(simulate::SimulateArgs),
+    /// Run the HTTP service (SPEC section 4) until SIGTERM or SIGINT.
+    Serve(qrpose::config::ServeArgs),
+    /// Print the OpenAPI document (what `openapi/openapi.json` holds).
+    Openapi,
+    /// Exit 0 when the service's /healthz answers 200 (for container health checks).
+    Healthcheck(healthcheck::HealthcheckArgs),
 }
 
 /// Runs the parsed command line.
@@ -39,5 +48,8 @@ pub fn run(cli: Cli) -> ExitCode {
             eprintln!("qrpose simulate: {e:#}");
             ExitCode::FAILURE
         }),
+        Command::Serve(args) => serve::run(args),
+        Command::Openapi => openapi::run(),
+        Command::Healthcheck(args) => healthcheck::run(&args),
     }
 }

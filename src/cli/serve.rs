@@ -1,0 +1,88 @@
+//! `qrpose serve`: the HTTP service on a tokio runtime sized by the settings.
+//!
+//! Prints `listening on http://ADDR` on standard output once the socket is bound (with
+//! `--addr 127.0.0.1:0`, ADDR has the port the system picked); logs go to standard error.
+//! SIGTERM or SIGINT starts a graceful shutdown; the exit code is then 0.
+
+use anyhow::Context;
+use qrpose::config::{ServeArgs, Settings};
+use qrpose::http::{self, AppState};
+use std::process::ExitCode;
+use std::time::Duration;
+
+/// How long the runtime waits for its remaining tasks when it stops.
+const RUNTIME_SHUTDOWN_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// A future completing on the first SIGTERM or SIGINT. The handlers are installed now, so a
+/// signal arriving right after the address is printed is not lost to the default action.
+fn shutdown_signal() -> anyhow::Result<impl std::future::Future<Output = ()>> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut sigterm = signal(SignalKind::terminate()).context("cannot listen for SIGTERM")?;
+    let mut sigint = signal(SignalKind::interrupt()).context("cannot listen for SIGINT")?;
+    Ok(async move {
+        tokio::select! {
+            _ = sigterm.recv() => tracing::info!("SIGTERM received"),
+            _ = sigint.recv() => tracing::info!("SIGINT received"),
+        }
+    })
+}
+
+async fn serve(settings: Settings) -> anyhow::Result<()> {
+    let addr = settings.addr;
+    let shutdown = shutdown_signal()?;
+    let state = AppState::new(settings).context("cannot build the service state")?;
+    let listener = tokio::net::TcpListener::bind(addr)
+        .await
+        .with_context(|| format!("cannot listen on {addr}"))?;
+    let bound = listener
+        .local_addr()
+        .context("cannot read the bound address")?;
+    println!("listening on http://{bound}");
+    tracing::info!(
+        addr = %bound,
+        max_concurrent_estimations = state.settings.max_concurrent_estimations.get(),
+        queue_length = state.settings.queue_length,
+        body_limit_bytes = state.settings.body_limit_bytes,
+        request_timeout_ms = qrpose::config::millis(state.settings.request_timeout),
+        "listening"
+    );
+    http::serve(listener, state, shutdown)
+        .await
+        .context("the server failed")
+}
+
+/// Runs `serve`.
+pub fn run(args: ServeArgs) -> ExitCode {
+    let settings = match Settings::try_from(args) {
+        Ok(settings) => settings,
+        Err(e) => {
+            eprintln!("qrpose serve: {e}");
+            return ExitCode::from(super::EXIT_BAD_INPUT);
+        }
+    };
+    if let Err(e) = qrpose::telemetry::init(settings.log_format) {
+        eprintln!("qrpose serve: {e}");
+        return ExitCode::FAILURE;
+    }
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(settings.worker_threads.get())
+        .enable_all()
+        .build()
+    {
+        Ok(runtime) => runtime,
+        Err(e) => {
+            eprintln!("qrpose serve: cannot start the runtime: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let result = runtime.block_on(serve(settings));
+    runtime.shutdown_timeout(RUNTIME_SHUTDOWN_TIMEOUT);
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            tracing::error!(error = format!("{e:#}"), "stopped");
+            eprintln!("qrpose serve: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

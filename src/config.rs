@@ -1,0 +1,299 @@
+//! Settings of `qrpose serve`: command-line flags with environment fallbacks, validated once
+//! into [`Settings`].
+//!
+//! Every scalar carries its unit in its name (`--request-timeout-ms`, `--body-limit-bytes`).
+//! A flag beats its environment variable, which beats the default. [`Settings`] is only built
+//! through [`Settings::try_from`] (or [`Settings::default`], the validated defaults), so the
+//! rest of the service never re-checks a value.
+
+use clap::{Args, ValueEnum};
+use std::net::SocketAddr;
+use std::num::NonZeroUsize;
+use std::time::Duration;
+
+/// Default listen address: loopback only, so that exposing the service is a deliberate act.
+pub const DEFAULT_ADDR: &str = "127.0.0.1:8080";
+/// Default request body limit, bytes (24 MiB): a 20 MB JPEG plus multipart framing fits.
+pub const DEFAULT_BODY_LIMIT_BYTES: usize = 24 * 1024 * 1024;
+// A 20 MiB image plus 64 KiB of multipart framing and request JSON fits the default.
+const _: () = assert!(DEFAULT_BODY_LIMIT_BYTES > 20 * 1024 * 1024 + 64 * 1024);
+/// Smallest accepted body limit, bytes: below this a corners request with a trace fails.
+pub const MIN_BODY_LIMIT_BYTES: usize = 1024;
+/// Largest accepted body limit, bytes (1 GiB): bodies are buffered in memory.
+pub const MAX_BODY_LIMIT_BYTES: usize = 1024 * 1024 * 1024;
+/// Default time for a whole request (reading the body, queueing, estimating), ms.
+pub const DEFAULT_REQUEST_TIMEOUT_MS: u64 = 10_000;
+/// Largest accepted request timeout, ms (10 minutes).
+pub const MAX_REQUEST_TIMEOUT_MS: u64 = 600_000;
+/// Default number of requests that may wait for an estimation worker.
+pub const DEFAULT_QUEUE_LENGTH: usize = 64;
+/// Largest accepted queue length.
+pub const MAX_QUEUE_LENGTH: usize = 100_000;
+/// Largest accepted number of async worker threads or estimation workers.
+pub const MAX_THREADS: usize = 1024;
+/// Default time that in-flight requests get to finish after SIGTERM or SIGINT, ms.
+pub const DEFAULT_SHUTDOWN_GRACE_MS: u64 = 10_000;
+/// Largest accepted shutdown grace period, ms (10 minutes).
+pub const MAX_SHUTDOWN_GRACE_MS: u64 = 600_000;
+
+/// Log line format.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
+pub enum LogFormat {
+    /// Human-readable lines.
+    #[default]
+    Text,
+    /// One JSON object per line, with the request span's fields (request id, method, path).
+    Json,
+}
+
+/// The flags of `qrpose serve`, each with an environment fallback.
+#[derive(Debug, Clone, Args)]
+pub struct ServeArgs {
+    /// Address to listen on; port 0 picks a free port (the bound address is printed).
+    #[arg(long, env = "QRPOSE_ADDR", default_value = DEFAULT_ADDR)]
+    pub addr: SocketAddr,
+    /// Largest request body, bytes; larger bodies get 413 `payload_too_large`.
+    #[arg(long, env = "QRPOSE_BODY_LIMIT_BYTES", default_value_t = DEFAULT_BODY_LIMIT_BYTES)]
+    pub body_limit_bytes: usize,
+    /// Time for a whole request, ms; slower requests get 503 `timeout`.
+    #[arg(long, env = "QRPOSE_REQUEST_TIMEOUT_MS", default_value_t = DEFAULT_REQUEST_TIMEOUT_MS)]
+    pub request_timeout_ms: u64,
+    /// Async runtime threads (network I/O) [default: number of CPUs].
+    #[arg(long, env = "QRPOSE_WORKER_THREADS")]
+    pub worker_threads: Option<usize>,
+    /// Estimations running at once: the number of estimation worker threads [default: number
+    /// of CPUs].
+    #[arg(long, env = "QRPOSE_MAX_CONCURRENT_ESTIMATIONS")]
+    pub max_concurrent_estimations: Option<usize>,
+    /// Requests that may wait for an estimation worker; when full, 503 `overloaded` at once.
+    #[arg(long, env = "QRPOSE_QUEUE_LENGTH", default_value_t = DEFAULT_QUEUE_LENGTH)]
+    pub queue_length: usize,
+    /// Log format (log level: `RUST_LOG`, default `info`).
+    #[arg(long, env = "QRPOSE_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
+    pub log_format: LogFormat,
+    /// Time in-flight requests get to finish after SIGTERM or SIGINT, ms.
+    #[arg(long, env = "QRPOSE_SHUTDOWN_GRACE_MS", default_value_t = DEFAULT_SHUTDOWN_GRACE_MS)]
+    pub shutdown_grace_ms: u64,
+}
+
+impl Default for ServeArgs {
+    fn default() -> Self {
+        Self {
+            addr: SocketAddr::from(([127, 0, 0, 1], 8080)),
+            body_limit_bytes: DEFAULT_BODY_LIMIT_BYTES,
+            request_timeout_ms: DEFAULT_REQUEST_TIMEOUT_MS,
+            worker_threads: None,
+            max_concurrent_estimations: None,
+            queue_length: DEFAULT_QUEUE_LENGTH,
+            log_format: LogFormat::Text,
+            shutdown_grace_ms: DEFAULT_SHUTDOWN_GRACE_MS,
+        }
+    }
+}
+
+/// A flag whose value is outside its documented range.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("--{flag} must be between {min} and {max}, got {value}")]
+pub struct ConfigError {
+    /// The flag's name, without dashes.
+    pub flag: &'static str,
+    /// The refused value.
+    pub value: u64,
+    /// Smallest accepted value.
+    pub min: u64,
+    /// Largest accepted value.
+    pub max: u64,
+}
+
+/// The validated configuration of the service.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Settings {
+    /// Address to listen on.
+    pub addr: SocketAddr,
+    /// Largest request body, bytes.
+    pub body_limit_bytes: usize,
+    /// Time for a whole request.
+    pub request_timeout: Duration,
+    /// Async runtime threads.
+    pub worker_threads: NonZeroUsize,
+    /// Estimations running at once.
+    pub max_concurrent_estimations: NonZeroUsize,
+    /// Requests that may wait for an estimation worker (0: none wait).
+    pub queue_length: usize,
+    /// Log format.
+    pub log_format: LogFormat,
+    /// Time in-flight requests get to finish after a shutdown signal.
+    pub shutdown_grace: Duration,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        let cpus = default_threads();
+        Self {
+            addr: SocketAddr::from(([127, 0, 0, 1], 8080)),
+            body_limit_bytes: DEFAULT_BODY_LIMIT_BYTES,
+            request_timeout: Duration::from_millis(DEFAULT_REQUEST_TIMEOUT_MS),
+            worker_threads: cpus,
+            max_concurrent_estimations: cpus,
+            queue_length: DEFAULT_QUEUE_LENGTH,
+            log_format: LogFormat::Text,
+            shutdown_grace: Duration::from_millis(DEFAULT_SHUTDOWN_GRACE_MS),
+        }
+    }
+}
+
+/// `duration` in whole milliseconds, for logs and messages (saturates at `u64::MAX`).
+pub fn millis(duration: Duration) -> u64 {
+    u64::try_from(duration.as_millis()).unwrap_or(u64::MAX)
+}
+
+/// The number of CPUs this process may use, 1 when unknown.
+fn default_threads() -> NonZeroUsize {
+    std::thread::available_parallelism().unwrap_or(NonZeroUsize::MIN)
+}
+
+fn in_range<T>(flag: &'static str, value: T, min: T, max: T) -> Result<T, ConfigError>
+where
+    T: Copy + PartialOrd + TryInto<u64>,
+{
+    let wide = |v: T| v.try_into().unwrap_or(u64::MAX);
+    if (min..=max).contains(&value) {
+        Ok(value)
+    } else {
+        Err(ConfigError {
+            flag,
+            value: wide(value),
+            min: wide(min),
+            max: wide(max),
+        })
+    }
+}
+
+fn threads(flag: &'static str, value: Option<usize>) -> Result<NonZeroUsize, ConfigError> {
+    match value {
+        None => Ok(default_threads()),
+        Some(n) => {
+            let n = in_range(flag, n, 1, MAX_THREADS)?;
+            Ok(NonZeroUsize::new(n).unwrap_or(NonZeroUsize::MIN))
+        }
+    }
+}
+
+impl TryFrom<ServeArgs> for Settings {
+    type Error = ConfigError;
+
+    fn try_from(args: ServeArgs) -> Result<Self, ConfigError> {
+        Ok(Self {
+            addr: args.addr,
+            body_limit_bytes: in_range(
+                "body-limit-bytes",
+                args.body_limit_bytes,
+                MIN_BODY_LIMIT_BYTES,
+                MAX_BODY_LIMIT_BYTES,
+            )?,
+            request_timeout: Duration::from_millis(in_range(
+                "request-timeout-ms",
+                args.request_timeout_ms,
+                1,
+                MAX_REQUEST_TIMEOUT_MS,
+            )?),
+            worker_threads: threads("worker-threads", args.worker_threads)?,
+            max_concurrent_estimations: threads(
+                "max-concurrent-estimations",
+                args.max_concurrent_estimations,
+            )?,
+            queue_length: in_range("queue-length", args.queue_length, 0, MAX_QUEUE_LENGTH)?,
+            log_format: args.log_format,
+            shutdown_grace: Duration::from_millis(in_range(
+                "shutdown-grace-ms",
+                args.shutdown_grace_ms,
+                0,
+                MAX_SHUTDOWN_GRACE_MS,
+            )?),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        serve: ServeArgs,
+    }
+
+    fn settings_from(flags: &[&str]) -> Result<Settings, ConfigError> {
+        let argv = std::iter::once("qrpose").chain(flags.iter().copied());
+        Settings::try_from(Cli::try_parse_from(argv).expect("flags parse").serve)
+    }
+
+    #[test]
+    fn defaults_are_valid_and_equal_the_default_settings() {
+        assert_eq!(settings_from(&[]), Ok(Settings::default()));
+        assert_eq!(
+            Settings::try_from(ServeArgs::default()),
+            Ok(Settings::default())
+        );
+    }
+
+    #[test]
+    fn flags_set_every_field() {
+        let s = settings_from(&[
+            "--addr",
+            "0.0.0.0:9000",
+            "--body-limit-bytes",
+            "4096",
+            "--request-timeout-ms",
+            "250",
+            "--worker-threads",
+            "3",
+            "--max-concurrent-estimations",
+            "5",
+            "--queue-length",
+            "0",
+            "--log-format",
+            "json",
+            "--shutdown-grace-ms",
+            "0",
+        ])
+        .expect("valid flags");
+        assert_eq!(s.addr, SocketAddr::from(([0, 0, 0, 0], 9000)));
+        assert_eq!(s.body_limit_bytes, 4096);
+        assert_eq!(s.request_timeout, Duration::from_millis(250));
+        assert_eq!(s.worker_threads.get(), 3);
+        assert_eq!(s.max_concurrent_estimations.get(), 5);
+        assert_eq!(s.queue_length, 0);
+        assert_eq!(s.log_format, LogFormat::Json);
+        assert_eq!(s.shutdown_grace, Duration::ZERO);
+    }
+
+    #[test]
+    fn rejects_values_outside_their_range_naming_the_flag() {
+        let cases: [(&[&str], &str); 7] = [
+            (&["--body-limit-bytes", "10"], "body-limit-bytes"),
+            (&["--request-timeout-ms", "0"], "request-timeout-ms"),
+            (&["--worker-threads", "0"], "worker-threads"),
+            (&["--worker-threads", "100000"], "worker-threads"),
+            (
+                &["--max-concurrent-estimations", "0"],
+                "max-concurrent-estimations",
+            ),
+            (&["--queue-length", "1000000"], "queue-length"),
+            (&["--shutdown-grace-ms", "700000"], "shutdown-grace-ms"),
+        ];
+        for (flags, flag) in cases {
+            let err = settings_from(flags).expect_err(flag);
+            assert_eq!(err.flag, flag, "{flags:?}");
+            assert!(err.to_string().starts_with(&format!("--{flag} ")), "{err}");
+        }
+    }
+
+    #[test]
+    fn an_unparseable_address_is_refused_by_the_parser() {
+        let argv = ["qrpose", "--addr", "localhost"];
+        assert!(Cli::try_parse_from(argv).is_err());
+    }
+}

@@ -1,0 +1,230 @@
+//! Request bodies: content-type checks and size-limited reading, with every refusal an
+//! [`ApiError`].
+//!
+//! Bodies are read here rather than with axum's `Json` or `Bytes` extractors for two
+//! reasons: parsing happens later on an estimation worker (with
+//! [`parse_json`](crate::api::problem::parse_json), which names the field at fault), and a
+//! body over the limit is drained (up to [`DRAIN_LIMIT_BYTES`]) before the 413 is sent, so
+//! that a client still writing its body reads the answer instead of a connection reset.
+
+use super::error::ApiError;
+use super::state::AppState;
+use crate::api::problem::ErrorCode;
+use axum::body::{Body, Bytes, HttpBody};
+use axum::extract::{FromRequest, Request};
+use axum::http::{HeaderMap, header};
+use axum::response::{IntoResponse, Response};
+use std::pin::Pin;
+
+/// The media type `POST` bodies of the JSON endpoints must declare.
+pub const JSON: &str = "application/json";
+
+/// At most this many bytes of an oversized body are read and discarded before the 413.
+pub const DRAIN_LIMIT_BYTES: usize = 64 * 1024 * 1024;
+
+/// At most this much is reserved before the body arrives, whatever `Content-Length` claims.
+const INITIAL_CAPACITY_BYTES: usize = 64 * 1024;
+
+/// Why a body could not be read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum BodyError {
+    /// The body is longer than the configured limit.
+    #[error("the request body exceeds the limit of {limit_bytes} bytes")]
+    TooLarge {
+        /// The configured limit, bytes.
+        limit_bytes: usize,
+    },
+    /// The connection failed or the framing was invalid while reading.
+    #[error("the request body could not be read: {reason}")]
+    Unreadable {
+        /// What the transport reported.
+        reason: String,
+    },
+}
+
+/// The media type of a request without its parameters, lower-case (`application/json`).
+pub fn media_type(headers: &HeaderMap) -> Option<String> {
+    let value = headers.get(header::CONTENT_TYPE)?;
+    let text = String::from_utf8_lossy(value.as_bytes());
+    let essence = text.split(';').next().unwrap_or_default().trim();
+    Some(essence.to_ascii_lowercase())
+}
+
+/// Whether `media_type` is JSON: `application/json` or a structured `application/*+json`.
+fn is_json(media_type: &str) -> bool {
+    media_type == JSON
+        || media_type
+            .strip_prefix("application/")
+            .is_some_and(|sub| sub.ends_with("+json"))
+}
+
+/// Refuses a request whose content type is not JSON.
+///
+/// # Errors
+/// 415 `unsupported_media_type`, also when the header is missing.
+pub fn require_json(headers: &HeaderMap) -> Result<(), ApiError> {
+    match media_type(headers) {
+        Some(m) if is_json(&m) => Ok(()),
+        got => Err(ApiError::unsupported_media_type(got.as_deref(), JSON)),
+    }
+}
+
+fn declared_length(headers: &HeaderMap) -> Option<usize> {
+    headers
+        .get(header::CONTENT_LENGTH)?
+        .to_str()
+        .ok()?
+        .parse()
+        .ok()
+}
+
+fn expects_continue(headers: &HeaderMap) -> bool {
+    headers
+        .get(header::EXPECT)
+        .is_some_and(|v| v.as_bytes().eq_ignore_ascii_case(b"100-continue"))
+}
+
+async fn next_data(body: &mut Body) -> Option<Result<Option<Bytes>, axum::Error>> {
+    let frame = std::future::poll_fn(|cx| Pin::new(&mut *body).poll_frame(cx)).await?;
+    Some(frame.map(|f| f.into_data().ok()))
+}
+
+/// Reads and discards what is left of `body`, at most `budget` bytes.
+async fn drain(mut body: Body, mut budget: usize) {
+    while let Some(Ok(data)) = next_data(&mut body).await {
+        let len = data.map_or(0, |d| d.len());
+        if len > budget {
+            return;
+        }
+        budget -= len;
+    }
+}
+
+/// Reads the whole body of `request`, at most `limit_bytes`.
+///
+/// A body declared (`Content-Length`) or found to be longer is drained up to
+/// [`DRAIN_LIMIT_BYTES`] and refused; with `Expect: 100-continue` the client has not sent it
+/// yet, so nothing is read.
+///
+/// # Errors
+/// [`BodyError::TooLarge`] over the limit, [`BodyError::Unreadable`] on a transport error.
+pub async fn read_body(request: Request, limit_bytes: usize) -> Result<Bytes, BodyError> {
+    let too_large = BodyError::TooLarge { limit_bytes };
+    let declared = declared_length(request.headers());
+    if declared.is_some_and(|n| n > limit_bytes) {
+        if !expects_continue(request.headers()) {
+            drain(request.into_body(), DRAIN_LIMIT_BYTES).await;
+        }
+        return Err(too_large);
+    }
+    let mut body = request.into_body();
+    // A declared length is only a claim: reserve at most a small amount up front.
+    let mut buf = Vec::with_capacity(declared.unwrap_or(0).min(INITIAL_CAPACITY_BYTES));
+    while let Some(frame) = next_data(&mut body).await {
+        let data = frame
+            .map_err(|e| BodyError::Unreadable {
+                reason: e.to_string(),
+            })?
+            .unwrap_or_default();
+        if buf.len() + data.len() > limit_bytes {
+            drain(body, DRAIN_LIMIT_BYTES.saturating_sub(buf.len())).await;
+            return Err(too_large);
+        }
+        buf.extend_from_slice(&data);
+    }
+    Ok(Bytes::from(buf))
+}
+
+/// A JSON body serialised elsewhere (on an estimation worker), sent as `application/json`.
+#[derive(Debug, Clone)]
+pub struct JsonBytes(pub Vec<u8>);
+
+impl IntoResponse for JsonBytes {
+    fn into_response(self) -> Response {
+        ([(header::CONTENT_TYPE, JSON)], self.0).into_response()
+    }
+}
+
+/// The raw body of a JSON request: content type checked and size limited. Parsing is left
+/// to the estimation worker.
+#[derive(Debug, Clone)]
+pub struct JsonBody(pub Bytes);
+
+impl FromRequest<AppState> for JsonBody {
+    type Rejection = ApiError;
+
+    async fn from_request(request: Request, state: &AppState) -> Result<Self, ApiError> {
+        require_json(request.headers())?;
+        read_body(request, state.settings.body_limit_bytes)
+            .await
+            .map(Self)
+            .map_err(|e| match e {
+                BodyError::TooLarge { limit_bytes } => ApiError::payload_too_large(limit_bytes),
+                BodyError::Unreadable { .. } => {
+                    ApiError::new(ErrorCode::MalformedJson, e.to_string())
+                }
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use axum::http::HeaderValue;
+
+    fn headers(content_type: &str) -> HeaderMap {
+        let mut h = HeaderMap::new();
+        h.insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_str(content_type).expect("a header value"),
+        );
+        h
+    }
+
+    #[test]
+    fn accepts_json_media_types_with_parameters() {
+        for ok in [
+            "application/json",
+            "Application/JSON; charset=utf-8",
+            "application/merge-patch+json",
+        ] {
+            assert!(require_json(&headers(ok)).is_ok(), "{ok}");
+        }
+    }
+
+    #[test]
+    fn refuses_other_and_missing_media_types() {
+        for bad in ["text/plain", "application/xml", "image/jpeg", "json", ""] {
+            let err = require_json(&headers(bad)).expect_err(bad);
+            assert_eq!(err.code(), ErrorCode::UnsupportedMediaType, "{bad}");
+        }
+        let err = require_json(&HeaderMap::new()).expect_err("no header");
+        assert_eq!(err.code(), ErrorCode::UnsupportedMediaType);
+    }
+
+    fn request(body: &'static [u8], declared: Option<usize>) -> Request {
+        let mut builder = Request::builder().method("POST").uri("/");
+        if let Some(n) = declared {
+            builder = builder.header(header::CONTENT_LENGTH, n);
+        }
+        builder.body(Body::from(body)).expect("a request")
+    }
+
+    #[tokio::test]
+    async fn reads_bodies_up_to_the_limit() {
+        let body = read_body(request(b"0123456789", None), 10).await;
+        assert_eq!(body, Ok(Bytes::from_static(b"0123456789")));
+    }
+
+    #[tokio::test]
+    async fn refuses_bodies_over_the_limit_declared_or_not() {
+        for declared in [None, Some(11)] {
+            let err = read_body(request(b"0123456789x", declared), 10).await;
+            assert_eq!(
+                err,
+                Err(BodyError::TooLarge { limit_bytes: 10 }),
+                "{declared:?}"
+            );
+        }
+    }
+}

@@ -1,0 +1,242 @@
+//! Prometheus metrics (OpenMetrics text, `GET /metrics`), all prefixed `qrpose_`.
+//!
+//! | metric | type | labels | meaning |
+//! |---|---|---|---|
+//! | `http_requests_total` | counter | route, method, status | answered requests |
+//! | `http_request_duration_seconds` | histogram | route | time to the response head |
+//! | `estimator_iterations` | histogram | method | iterations of each successful estimate |
+//! | `estimator_not_converged_total` | counter | method | estimates that hit `max_iterations` |
+//! | `estimation_queue_depth` | gauge | | requests waiting for an estimation worker |
+//! | `estimations_running` | gauge | | estimations running now |
+//! | `estimation_rejections_total` | counter | | requests refused with 503 `overloaded` |
+//!
+//! `route` is the route template (`/v1/pose/corners`), or `unmatched` for unknown paths, so
+//! that scanning clients cannot create unbounded label values. A new per-endpoint metric (the
+//! image route's codes detected per image) is one field here, registered in [`Metrics::new`].
+
+use axum::http::{Method, StatusCode};
+use prometheus_client::encoding::EncodeLabelSet;
+use prometheus_client::metrics::{
+    counter::Counter,
+    family::Family,
+    gauge::Gauge,
+    histogram::{Histogram, exponential_buckets},
+};
+use prometheus_client::registry::{Registry, Unit};
+use std::time::Duration;
+
+/// The content type of `GET /metrics`.
+pub const OPENMETRICS_TEXT: &str = "application/openmetrics-text; version=1.0.0; charset=utf-8";
+
+/// Route label of requests that matched no route.
+pub const UNMATCHED_ROUTE: &str = "unmatched";
+
+/// Upper bounds of the iteration histogram: the default limit (30) and the largest (10000)
+/// are bucket edges, so "ran to the limit" is visible.
+const ITERATION_BUCKETS: [f64; 13] = [
+    1.0, 2.0, 3.0, 5.0, 8.0, 13.0, 20.0, 30.0, 50.0, 100.0, 300.0, 1000.0, 10000.0,
+];
+
+/// Latency buckets: 50 µs doubling to about 3.3 s.
+fn latency_buckets() -> impl Iterator<Item = f64> {
+    exponential_buckets(50e-6, 2.0, 17)
+}
+
+/// Labels of one request.
+#[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct RequestLabels {
+    /// Route template or [`UNMATCHED_ROUTE`].
+    pub route: String,
+    /// HTTP method.
+    pub method: String,
+    /// Response status code.
+    pub status: u16,
+}
+
+/// Labels of per-route series.
+#[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct RouteLabels {
+    /// Route template or [`UNMATCHED_ROUTE`].
+    pub route: String,
+}
+
+/// Labels of per-estimator series.
+#[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct MethodLabels {
+    /// `paper`, `depth-newton` or `reprojection`.
+    pub method: String,
+}
+
+type HistogramFamily<L> = Family<L, Histogram, fn() -> Histogram>;
+
+/// The queue's gauges and counter, shared with [`super::queue::EstimationQueue`].
+#[derive(Debug, Clone, Default)]
+pub struct QueueMetrics {
+    /// Requests waiting for a worker.
+    pub waiting: Gauge,
+    /// Jobs running.
+    pub running: Gauge,
+    /// Requests refused because the queue was full.
+    pub rejected: Counter,
+}
+
+/// Every metric of the service and the registry that exposes them.
+#[derive(Debug)]
+pub struct Metrics {
+    registry: Registry,
+    requests: Family<RequestLabels, Counter>,
+    latency: HistogramFamily<RouteLabels>,
+    iterations: HistogramFamily<MethodLabels>,
+    not_converged: Family<MethodLabels, Counter>,
+    queue: QueueMetrics,
+}
+
+impl Default for Metrics {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Metrics {
+    /// A fresh registry with every metric at zero.
+    pub fn new() -> Self {
+        let mut registry = Registry::with_prefix("qrpose");
+        let requests = Family::<RequestLabels, Counter>::default();
+        let latency: HistogramFamily<RouteLabels> =
+            Family::new_with_constructor(|| Histogram::new(latency_buckets()));
+        let iterations: HistogramFamily<MethodLabels> =
+            Family::new_with_constructor(|| Histogram::new(ITERATION_BUCKETS));
+        let not_converged = Family::<MethodLabels, Counter>::default();
+        let queue = QueueMetrics::default();
+        registry.register(
+            "http_requests",
+            "HTTP requests answered, by route template, method and status",
+            requests.clone(),
+        );
+        registry.register_with_unit(
+            "http_request_duration",
+            "Time from request to response head, by route template",
+            Unit::Seconds,
+            latency.clone(),
+        );
+        registry.register(
+            "estimator_iterations",
+            "Iterations of each estimate, by method",
+            iterations.clone(),
+        );
+        registry.register(
+            "estimator_not_converged",
+            "Estimates that ended without converging, by method",
+            not_converged.clone(),
+        );
+        registry.register(
+            "estimation_queue_depth",
+            "Requests waiting for an estimation worker",
+            queue.waiting.clone(),
+        );
+        registry.register(
+            "estimations_running",
+            "Estimations running now",
+            queue.running.clone(),
+        );
+        registry.register(
+            "estimation_rejections",
+            "Requests refused with 503 overloaded because the estimation queue was full",
+            queue.rejected.clone(),
+        );
+        Self {
+            registry,
+            requests,
+            latency,
+            iterations,
+            not_converged,
+            queue,
+        }
+    }
+
+    /// The queue's share, for [`super::queue::EstimationQueue::new`].
+    pub fn queue(&self) -> QueueMetrics {
+        self.queue.clone()
+    }
+
+    /// Counts one answered request and its latency.
+    pub fn observe_request(
+        &self,
+        route: &str,
+        method: &Method,
+        status: StatusCode,
+        elapsed: Duration,
+    ) {
+        self.requests
+            .get_or_create(&RequestLabels {
+                route: route.to_owned(),
+                method: method.as_str().to_owned(),
+                status: status.as_u16(),
+            })
+            .inc();
+        self.latency
+            .get_or_create(&RouteLabels {
+                route: route.to_owned(),
+            })
+            .observe(elapsed.as_secs_f64());
+    }
+
+    /// Records one estimate's iterations and whether it converged.
+    pub fn observe_estimate(&self, method: &str, iterations: u32, converged: bool) {
+        let labels = MethodLabels {
+            method: method.to_owned(),
+        };
+        self.iterations
+            .get_or_create(&labels)
+            .observe(f64::from(iterations));
+        if !converged {
+            self.not_converged.get_or_create(&labels).inc();
+        }
+    }
+
+    /// The OpenMetrics text exposition.
+    ///
+    /// # Errors
+    /// Only if formatting into a `String` fails, which it does not.
+    pub fn encode(&self) -> Result<String, std::fmt::Error> {
+        let mut text = String::new();
+        prometheus_client::encoding::text::encode(&mut text, &self.registry)?;
+        Ok(text)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exposes_requests_estimates_and_the_queue() {
+        let metrics = Metrics::new();
+        metrics.observe_request(
+            "/v1/pose/corners",
+            &Method::POST,
+            StatusCode::OK,
+            Duration::from_micros(300),
+        );
+        metrics.observe_estimate("paper", 30, false);
+        metrics.observe_estimate("reprojection", 4, true);
+        metrics.queue().rejected.inc();
+        let text = metrics.encode().expect("encodes");
+        for line in [
+            r#"qrpose_http_requests_total{route="/v1/pose/corners",method="POST",status="200"} 1"#,
+            r#"qrpose_http_request_duration_seconds_count{route="/v1/pose/corners"} 1"#,
+            r#"qrpose_estimator_iterations_bucket{le="30.0",method="paper"} 1"#,
+            r#"qrpose_estimator_not_converged_total{method="paper"} 1"#,
+            "qrpose_estimation_queue_depth 0",
+            "qrpose_estimations_running 0",
+            "qrpose_estimation_rejections_total 1",
+            "# EOF",
+        ] {
+            assert!(text.contains(line), "missing `{line}` in\n{text}");
+        }
+        assert!(
+            !text.contains(r#"qrpose_estimator_not_converged_total{method="reprojection"}"#),
+            "a converged estimate is not counted as non-converged"
+        );
+    }
+}

@@ -1,0 +1,61 @@
+//! The OpenAPI 3.1 document: one source with the routes (`OpenApiRouter` + `routes!`), so a
+//! route cannot exist without its documentation.
+//!
+//! `openapi/openapi.json` in the repository is [`openapi_json`]'s output, written only by
+//! `cargo run -- openapi > openapi/openapi.json`; a test fails when the two drift.
+
+use super::routes::{corners, docs, health, metrics};
+use super::state::AppState;
+use utoipa::OpenApi;
+use utoipa_axum::{router::OpenApiRouter, routes};
+
+/// The command that regenerates the committed document.
+pub const REGENERATE: &str = "cargo run -- openapi > openapi/openapi.json";
+
+/// Document-level information; the paths come from [`api_router`].
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "qrpose",
+        description = "Where a QR code is in 3D and how it is turned, from one image of one \
+camera.\n\nUnits: lengths in millimetres, image coordinates in pixels (u right, v down, \
+integer = pixel centre), angles in degrees. Camera frame: x right, y down, z forward (OpenCV). \
+Pose: p_cam = R·p_marker + t, with the marker frame's origin at corner P2 (the symbol's \
+top-right corner).\n\nEvery error is an RFC 9457 `application/problem+json` document with a \
+stable snake_case `code` and, when one field is at fault, `field` (a JSON pointer). Every \
+response carries `x-request-id` (the client's, when it sends a short token, else a fresh \
+UUID); log lines of the request carry the same id. Unknown routes answer 404 `not_found`, \
+known routes with another method 405 `method_not_allowed` (with `Allow`). The interactive \
+documentation is at `/docs`.",
+        license(name = "Apache-2.0", identifier = "Apache-2.0"),
+    ),
+    tags(
+        (name = "pose", description = "Pose estimation."),
+        (name = "operations", description = "Health, readiness, metrics and this document."),
+    )
+)]
+pub struct ApiDoc;
+
+/// Every documented route with its handler, before state is attached.
+pub fn api_router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .routes(routes!(corners::pose_from_corners))
+        .routes(routes!(health::healthz))
+        .routes(routes!(health::readyz))
+        .routes(routes!(metrics::metrics))
+        .routes(routes!(docs::openapi_json))
+}
+
+/// The OpenAPI document.
+pub fn openapi() -> utoipa::openapi::OpenApi {
+    api_router().into_openapi()
+}
+
+/// The OpenAPI document as pretty JSON with a final newline: what `qrpose openapi` prints,
+/// `GET /openapi.json` serves and `openapi/openapi.json` holds.
+///
+/// # Errors
+/// Only if the document cannot be serialised, which a derived document always can.
+pub fn openapi_json() -> Result<String, serde_json::Error> {
+    openapi().to_pretty_json().map(|json| json + "\n")
+}

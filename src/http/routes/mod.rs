@@ -1,0 +1,6 @@
+//! One file per endpoint: the handler and its `#[utoipa::path]`.
+
+pub mod corners;
+pub mod docs;
+pub mod health;
+pub mod metrics;

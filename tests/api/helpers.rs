@@ -1,0 +1,257 @@
+//! `spawn_app()`: the service on `127.0.0.1:0` in this test's runtime, and a client for it.
+
+use qrpose::api::problem::{ErrorCode, Problem};
+use qrpose::config::{LogFormat, Settings};
+use qrpose::http::{self, AppState};
+use reqwest::{Response, StatusCode, header};
+use serde_json::{Value, json};
+use std::future::Future;
+use std::sync::LazyLock;
+use std::time::Duration;
+use tokio::task::JoinHandle;
+use tokio_util::sync::CancellationToken;
+
+/// Set `TEST_LOG=1` to see the service's logs in a failing test's output.
+static TRACING: LazyLock<()> = LazyLock::new(|| {
+    if std::env::var_os("TEST_LOG").is_some() {
+        qrpose::telemetry::init_with_writer(LogFormat::Text, std::io::stdout, false)
+            .expect("the only subscriber");
+    }
+});
+
+/// How long a test waits for a condition that must come true before declaring it never did.
+pub const PATIENCE: Duration = Duration::from_secs(20);
+
+/// A running service.
+pub struct TestApp {
+    /// `http://127.0.0.1:PORT`.
+    pub address: String,
+    /// A client without proxies.
+    pub client: reqwest::Client,
+    /// The server's state: its queue, metrics and lifecycle.
+    pub state: AppState,
+    shutdown: CancellationToken,
+    server: JoinHandle<std::io::Result<()>>,
+}
+
+/// The service with default settings.
+pub async fn spawn_app() -> TestApp {
+    spawn_app_with(Settings::default()).await
+}
+
+/// The service with `settings` (its `addr` is ignored: the app binds `127.0.0.1:0`).
+pub async fn spawn_app_with(settings: Settings) -> TestApp {
+    LazyLock::force(&TRACING);
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("a free port");
+    let address = format!("http://{}", listener.local_addr().expect("a bound address"));
+    let state = AppState::new(settings).expect("state");
+    let shutdown = CancellationToken::new();
+    let server = tokio::spawn(http::serve(
+        listener,
+        state.clone(),
+        shutdown.clone().cancelled_owned(),
+    ));
+    let client = reqwest::Client::builder()
+        .no_proxy()
+        .build()
+        .expect("a client");
+    TestApp {
+        address,
+        client,
+        state,
+        shutdown,
+        server,
+    }
+}
+
+impl TestApp {
+    /// `GET path`.
+    pub async fn get(&self, path: &str) -> Response {
+        self.client
+            .get(format!("{}{path}", self.address))
+            .send()
+            .await
+            .expect("the server answers")
+    }
+
+    /// `method path` without a body.
+    pub async fn request(&self, method: reqwest::Method, path: &str) -> Response {
+        self.client
+            .request(method, format!("{}{path}", self.address))
+            .send()
+            .await
+            .expect("the server answers")
+    }
+
+    /// `POST /v1/pose/corners` with a JSON body.
+    pub async fn post_corners(&self, body: &Value) -> Response {
+        self.client
+            .post(format!("{}/v1/pose/corners", self.address))
+            .json(body)
+            .send()
+            .await
+            .expect("the server answers")
+    }
+
+    /// `POST /v1/pose/corners` with raw bytes and an optional content type.
+    pub async fn post_corners_raw(&self, body: Vec<u8>, content_type: Option<&str>) -> Response {
+        let mut request = self
+            .client
+            .post(format!("{}/v1/pose/corners", self.address))
+            .body(body);
+        if let Some(content_type) = content_type {
+            request = request.header(header::CONTENT_TYPE, content_type);
+        }
+        request.send().await.expect("the server answers")
+    }
+
+    /// Sends the valid corners request from a task of its own, for a test that must act
+    /// while the request is in flight.
+    pub fn post_corners_in_background(&self) -> JoinHandle<reqwest::Result<Response>> {
+        let request = self
+            .client
+            .post(format!("{}/v1/pose/corners", self.address))
+            .json(&valid_request());
+        tokio::spawn(request.send())
+    }
+
+    /// Panics unless a valid corners request is answered 200.
+    pub async fn assert_serves_corners(&self, after: &str) {
+        let status = self.post_corners(&valid_request()).await.status();
+        assert_eq!(status, StatusCode::OK, "corners after {after}");
+    }
+
+    /// `GET /healthz`.
+    pub async fn healthz(&self) -> Response {
+        self.get("/healthz").await
+    }
+
+    /// Panics unless `/healthz` answers 200.
+    pub async fn assert_up(&self, after: &str) {
+        let status = self.healthz().await.status();
+        assert_eq!(status, StatusCode::OK, "healthz after {after}");
+    }
+
+    /// Starts a graceful shutdown, as SIGTERM does.
+    pub fn trigger_shutdown(&self) {
+        self.shutdown.cancel();
+    }
+
+    /// Waits for the server to stop after [`TestApp::trigger_shutdown`].
+    pub async fn stopped(self) -> std::io::Result<()> {
+        tokio::time::timeout(PATIENCE, self.server)
+            .await
+            .expect("the server stops within the test's patience")
+            .expect("the server task does not panic")
+    }
+}
+
+/// Waits until `condition` holds, checking every few milliseconds; panics after [`PATIENCE`].
+pub async fn eventually<F, Fut>(what: &str, mut condition: F)
+where
+    F: FnMut() -> Fut,
+    Fut: Future<Output = bool>,
+{
+    let waited = tokio::time::timeout(PATIENCE, async {
+        while !condition().await {
+            tokio::time::sleep(Duration::from_millis(5)).await;
+        }
+    })
+    .await;
+    assert!(waited.is_ok(), "never happened: {what}");
+}
+
+/// Asserts a problem+json answer with this status and code, and returns the document.
+pub async fn assert_problem(response: Response, status: u16, code: ErrorCode) -> Problem {
+    let context = format!("{} {}", response.url().path(), response.status());
+    assert_eq!(response.status().as_u16(), status, "{context}");
+    assert_eq!(
+        response.headers()[header::CONTENT_TYPE],
+        "application/problem+json",
+        "{context}"
+    );
+    assert!(
+        response.headers().contains_key("x-request-id"),
+        "{context}: no x-request-id"
+    );
+    let problem: Problem = response.json().await.expect("a problem document");
+    assert_eq!(problem.code, code, "{context}: {problem:?}");
+    assert_eq!(problem.status, status, "{context}");
+    assert_eq!(
+        problem.type_uri,
+        format!("urn:qrpose:problem:{}", code.as_str())
+    );
+    assert!(!problem.title.is_empty() && !problem.detail.is_empty());
+    problem
+}
+
+/// A valid corners request: a 50 mm code about half a metre in front of a 1280x720 camera.
+pub fn valid_request() -> Value {
+    json!({
+        "corners_px": [[589.2, 309.8], [689.9, 311.4], [688.1, 411.6], [588.0, 409.5]],
+        "camera": {"fx_px": 1000.0, "fy_px": 1000.0, "cx_px": 639.5, "cy_px": 359.5},
+        "marker": {"size_mm": 50.0}
+    })
+}
+
+/// One estimation worker held busy by the test until [`Gate::release`] (or drop).
+pub struct Gate {
+    open: std::sync::mpsc::Sender<()>,
+    job: JoinHandle<Result<(), qrpose::http::error::ApiError>>,
+}
+
+impl Gate {
+    /// Lets the job finish and waits for it.
+    pub async fn release(self) {
+        self.open.send(()).expect("the job is waiting for the gate");
+        self.job
+            .await
+            .expect("the job's task")
+            .expect("the job ran");
+    }
+}
+
+/// Takes one estimation worker through the server's own queue: a job that waits for the
+/// test. Returns once the job runs.
+pub async fn occupy_worker(app: &TestApp) -> Gate {
+    let (open, gate) = std::sync::mpsc::channel::<()>();
+    let queue = app.state.queue.clone();
+    let running_before = queue.occupancy().running;
+    let job = tokio::spawn({
+        let queue = queue.clone();
+        async move {
+            queue
+                .run(move || {
+                    let _ = gate.recv();
+                })
+                .await
+        }
+    });
+    eventually("the test's job runs", || {
+        let running = queue.occupancy().running;
+        async move { running == running_before + 1 }
+    })
+    .await;
+    Gate { open, job }
+}
+
+/// Waits until the queue has `running` jobs running and `waiting` waiting.
+pub async fn queue_reaches(app: &TestApp, running: usize, waiting: usize) {
+    let queue = app.state.queue.clone();
+    eventually(&format!("{running} running, {waiting} waiting"), || {
+        let o = queue.occupancy();
+        async move { (o.running, o.waiting) == (running, waiting) }
+    })
+    .await;
+}
+
+/// Settings with one estimation worker and `queue_length` waiting places.
+pub fn one_worker(queue_length: usize) -> Settings {
+    Settings {
+        max_concurrent_estimations: std::num::NonZeroUsize::MIN,
+        queue_length,
+        ..Settings::default()
+    }
+}

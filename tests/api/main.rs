@@ -1,0 +1,16 @@
+//! The HTTP API against a live server on a random port: one module per endpoint, plus the
+//! service-wide behaviour (errors, overload, shutdown) and the CLI subcommands that talk to
+//! or describe the server.
+
+mod helpers;
+
+mod corners;
+mod corners_bad_inputs;
+mod docs;
+mod health;
+mod healthcheck;
+mod metrics;
+mod openapi;
+mod routing;
+mod saturation;
+mod shutdown;

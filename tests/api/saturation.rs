@@ -1,0 +1,90 @@
+//! Saturation: a full estimation queue answers 503 `overloaded` at once, a request that
+//! waits too long 503 `timeout`, both with `Retry-After`. The test occupies the workers
+//! itself through the server's own queue, so nothing depends on how fast an estimate is.
+
+use crate::helpers::{
+    assert_problem, occupy_worker, one_worker, queue_reaches, spawn_app_with, valid_request,
+};
+use qrpose::api::problem::ErrorCode;
+use qrpose::config::Settings;
+use reqwest::{StatusCode, header};
+use std::time::Duration;
+
+#[tokio::test]
+async fn a_full_queue_answers_503_overloaded_with_retry_after() {
+    // Arrange: one worker, no waiting places, and the worker taken.
+    let app = spawn_app_with(one_worker(0)).await;
+    let gate = occupy_worker(&app).await;
+
+    // Act
+    let refused = app.post_corners(&valid_request()).await;
+
+    // Assert
+    assert_eq!(refused.headers()[header::RETRY_AFTER], "1");
+    assert_problem(refused, 503, ErrorCode::Overloaded).await;
+    let metrics = app.get("/metrics").await.text().await.expect("text");
+    assert!(
+        metrics.contains("qrpose_estimation_rejections_total 1"),
+        "{metrics}"
+    );
+    assert!(
+        metrics.contains("qrpose_estimations_running 1"),
+        "{metrics}"
+    );
+    app.assert_up("an overload").await;
+
+    gate.release().await;
+    app.assert_serves_corners("the worker is free").await;
+}
+
+#[tokio::test]
+async fn a_request_waiting_past_the_timeout_answers_503_timeout() {
+    // Arrange: one worker (taken) and one waiting place; a short timeout.
+    let app = spawn_app_with(Settings {
+        request_timeout: Duration::from_millis(200),
+        ..one_worker(1)
+    })
+    .await;
+    let gate = occupy_worker(&app).await;
+
+    // Act
+    let timed_out = app.post_corners(&valid_request()).await;
+
+    // Assert
+    assert_eq!(timed_out.headers()[header::RETRY_AFTER], "1");
+    let problem = assert_problem(timed_out, 503, ErrorCode::Timeout).await;
+    assert!(problem.detail.contains("200 ms"), "{}", problem.detail);
+
+    // The abandoned job keeps its place until a worker reaches it and drops it unrun.
+    queue_reaches(&app, 1, 1).await;
+    gate.release().await;
+    queue_reaches(&app, 0, 0).await;
+    app.assert_serves_corners("the worker is free").await;
+}
+
+#[tokio::test]
+async fn queued_requests_are_served_in_turn_once_a_worker_frees() {
+    // Arrange: one worker (taken) and two waiting places, both filled.
+    let app = spawn_app_with(one_worker(2)).await;
+    let gate = occupy_worker(&app).await;
+    let first = app.post_corners_in_background();
+    let second = app.post_corners_in_background();
+    queue_reaches(&app, 1, 2).await;
+    let readiness: serde_json::Value = app.get("/readyz").await.json().await.expect("JSON");
+    assert_eq!(readiness["queue"]["waiting"], 2);
+    assert_problem(
+        app.post_corners(&valid_request()).await,
+        503,
+        ErrorCode::Overloaded,
+    )
+    .await;
+
+    // Act
+    gate.release().await;
+
+    // Assert
+    for request in [first, second] {
+        let response = request.await.expect("the task").expect("an answer");
+        assert_eq!(response.status(), StatusCode::OK);
+    }
+}
