@@ -6,10 +6,14 @@
 //! |---|---|
 //! | [`geometry`] | frames, camera and distortion, marker, corner quadrilaterals, Euler angles (core) |
 //! | [`estimate`] | pose from four corners: `paper`, `depth-newton`, `reprojection` (core) |
+//! | [`detect`] | image bytes to QR codes: decoding, detector backends, sub-pixel corners |
+//! | [`render`] | synthetic photos of a QR code at a known pose, with ground truth |
 //! | [`api`] | wire types shared by the HTTP service and the CLI, and their validation |
 
 #![warn(missing_docs)]
 
 pub mod api;
+pub mod detect;
 pub mod estimate;
 pub mod geometry;
+pub mod render;
