@@ -5,6 +5,7 @@
 //! stderr); 1 anything else (I/O, internal).
 
 mod estimate;
+mod render;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -26,11 +27,14 @@ pub struct Cli {
 pub enum Command {
     /// Estimate a pose: prints what `POST /v1/pose/corners` would return.
     Estimate(estimate::EstimateArgs),
+    /// Render a synthetic photo of a QR code at a given pose; prints its ground truth.
+    Render(render::RenderArgs),
 }
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Estimate(args) => estimate::run(&args),
+        Command::Render(args) => render::run(&args),
     }
 }
