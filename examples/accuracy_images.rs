@@ -213,10 +213,10 @@ fn evaluate(case: &Case, truth: &qrpose::render::GroundTruth, codes: &[DetectedC
     e.detected = true;
     e.refined = code.is_refined();
     e.payload_ok = code.candidate.text.as_deref() == Some(case.payload.as_str());
-    for k in 0..4 {
+    for (k, t) in tc.iter().enumerate() {
         e.raw_corner_err
-            .push((code.candidate.corners_px[k].0 - tc[k].0).norm());
-        e.corner_err.push((code.corners_px()[k].0 - tc[k].0).norm());
+            .push((code.candidate.corners_px[k].0 - t.0).norm());
+        e.corner_err.push((code.corners_px()[k].0 - t.0).norm());
     }
     let s = &case.scene;
     let params = EstimatorParams::default();
@@ -251,6 +251,7 @@ fn evaluate(case: &Case, truth: &qrpose::render::GroundTruth, codes: &[DetectedC
     e
 }
 
+#[allow(clippy::cast_possible_truncation)] // an index within 0..len
 fn pct(v: &mut [f64], q: f64) -> f64 {
     if v.is_empty() {
         return f64::NAN;

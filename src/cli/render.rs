@@ -4,9 +4,7 @@
 use super::estimate::{print_json, report_problem};
 use clap::Args;
 use qrpose::api::problem::{ErrorCode, Problem};
-use qrpose::geometry::{
-    camera::Camera, euler::EulerXyz, frames::MarkerToCamera, marker::Marker,
-};
+use qrpose::geometry::{camera::Camera, euler::EulerXyz, frames::MarkerToCamera, marker::Marker};
 use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
 use serde_json::json;
 use std::path::PathBuf;
@@ -94,12 +92,8 @@ fn problem(detail: impl Into<String>, field: &str) -> Problem {
 }
 
 fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
-    let cx = args
-        .cx_px
-        .unwrap_or(f64::from(args.width_px) / 2.0 - 0.5);
-    let cy = args
-        .cy_px
-        .unwrap_or(f64::from(args.height_px) / 2.0 - 0.5);
+    let cx = args.cx_px.unwrap_or(f64::from(args.width_px) / 2.0 - 0.5);
+    let cy = args.cy_px.unwrap_or(f64::from(args.height_px) / 2.0 - 0.5);
     let camera = Camera::from_pixels(args.fx_px, args.fy_px, cx, cy)
         .map_err(|e| Problem::new(ErrorCode::InvalidCameraParameter, e.to_string()))?;
     let marker = Marker::try_new(args.marker_size_mm).map_err(|e| {

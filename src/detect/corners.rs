@@ -22,6 +22,10 @@
 //! finder-pattern match, or corners that moved further than [`MAX_MOVE_MODULES`] from the
 //! backend's, the backend corners are kept and [`Refinement::status`] says why.
 
+// Pixel and module indices are floats floored or clamped into the image or the module grid
+// (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
+#![allow(clippy::cast_possible_truncation)]
+
 use super::decode::GrayImage;
 use super::homography::{Homography, ModulePoint};
 use super::profile::{DarkRun, fit_profile};
@@ -152,10 +156,10 @@ fn function_module(n: usize, i: usize, j: usize) -> Option<bool> {
         return finder(i, n - 1 - j);
     }
     if j == 6 {
-        return Some(i % 2 == 0);
+        return Some(i.is_multiple_of(2));
     }
     if i == 6 {
-        return Some(j % 2 == 0);
+        return Some(j.is_multiple_of(2));
     }
     None
 }
@@ -679,7 +683,7 @@ pub fn refine_corners(
         .zip(backend_corners)
         .map(|(a, b)| (a.0 - b.0).norm())
         .fold(0.0, f64::max);
-    if !(moved <= MAX_MOVE_MODULES * module_px.max(1.5)) {
+    if moved.is_nan() || moved > MAX_MOVE_MODULES * module_px.max(1.5) {
         return unrefined(RefineStatus::MovedTooFar, Some(n));
     }
     Refinement {

@@ -12,6 +12,10 @@
 //! Conventions: corners in `"qr"` order (top-left, top-right, bottom-right, bottom-left of
 //! the symbol), pixels with integer pixel centres (SPEC section 1).
 
+// Pixel and module indices are floats floored or clamped into the image or the module grid
+// (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
+#![allow(clippy::cast_possible_truncation)]
+
 pub mod corners;
 pub mod decode;
 pub mod finders;
