@@ -33,7 +33,7 @@ use crate::geometry::frames::PixelPoint;
 use nalgebra::{DMatrix, Matrix3};
 
 /// Refinement passes (module map, observations, homography).
-pub const ITERATIONS: usize = 3;
+pub const ITERATIONS: usize = 2;
 /// Refined corners further than this from the backend's (in modules) mean a failure.
 pub const MAX_MOVE_MODULES: f64 = 2.0;
 /// Fewest pixels per module the refinement works with.
@@ -42,6 +42,8 @@ pub const MIN_PX_PER_MODULE: f64 = 1.2;
 const HUBER_PX: f64 = 0.3;
 /// Half-length of a profile across an edge, modules.
 const PROFILE_HALF_MODULES: f64 = 2.5;
+/// Most samples in one profile (cost grows with it; 24 keeps ≥ 4 per module).
+const MAX_PROFILE_SAMPLES: usize = 24;
 /// Starting blur of a profile fit, px.
 const SIGMA0_PX: f64 = 1.0;
 /// Fewest edge observations on one finder side for its line fit.
@@ -380,9 +382,10 @@ fn observe(image: &GrayImage, h: &Homography, map: &ModuleMap) -> Vec<Observatio
         if across < MIN_PX_PER_MODULE {
             continue;
         }
-        // About one profile per pixel along the edge, kept 0.2 module off the module ends.
-        let count = along.round().clamp(1.0, 6.0) as usize;
-        let step_d = 0.35 / across;
+        // One profile per module (two on modules over 4 px), kept 0.2 module off the module
+        // ends; samples every 0.5 px, at most MAX_PROFILE_SAMPLES.
+        let count = if along > 4.0 { 2 } else { 1 };
+        let step_d = (0.5 / across).max(2.0 * PROFILE_HALF_MODULES / MAX_PROFILE_SAMPLES as f64);
         let samples = (2.0 * PROFILE_HALF_MODULES / step_d).ceil() as usize;
         for m in 0..count {
             let t = s.k as f64 + 0.2 + 0.6 * (m as f64 + 0.5) / count as f64;

@@ -4,8 +4,9 @@
 //! - [`decode`]: bytes → [`decode::GrayImage`], with [`decode::DecodeLimits`].
 //! - Backends behind [`Detector`]: [`rqrr`] and [`rxing`] always; `zxing_cpp` with the
 //!   `zxing-cpp` cargo feature. [`DetectorChoice::Auto`] uses the best one built and falls
-//!   back to the others (and to a second pass on a contrast-stretched, inverted or rescaled
-//!   image) when it reads nothing; results are merged by position.
+//!   back to the others, then to second passes of the best one on a contrast-stretched,
+//!   half-scale (large images), double-scale (small images) or inverted copy, when it reads
+//!   nothing; results are merged by position.
 //! - [`corners`]: sub-pixel corners and the twelve finder-pattern corners, whatever the
 //!   backend ([`profile`] measures single edges, [`homography`] maps the module grid).
 //!
@@ -195,7 +196,38 @@ fn second_pass_images(image: &GrayImage) -> Vec<(GrayImage, f64)> {
     {
         out.push((half, 2.0));
     }
+    if image.width().max(image.height()) <= 600
+        && let Some(double) = upscale_double(image)
+    {
+        out.push((double, 0.5));
+    }
+    if let Some(inverted) = invert(image) {
+        out.push((inverted, 1.0));
+    }
     out
+}
+
+/// The photographic negative, for light-on-dark codes.
+pub fn invert(image: &GrayImage) -> Option<GrayImage> {
+    let pixels = image.pixels().iter().map(|p| 255 - p).collect();
+    GrayImage::new(image.width(), image.height(), pixels)
+}
+
+/// Doubles the image by bilinear interpolation (pixel centres kept: copy pixel (x, y)
+/// samples the source at ((x + 0.5) / 2 − 0.5, (y + 0.5) / 2 − 0.5)).
+pub fn upscale_double(image: &GrayImage) -> Option<GrayImage> {
+    let (w, h) = (image.width() * 2, image.height() * 2);
+    let max_u = (image.width() - 1) as f64;
+    let max_v = (image.height() - 1) as f64;
+    let mut pixels = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let u = ((x as f64 + 0.5) / 2.0 - 0.5).clamp(0.0, max_u);
+            let v = ((y as f64 + 0.5) / 2.0 - 0.5).clamp(0.0, max_v);
+            pixels.push(image.sample(u, v).unwrap_or(0.0).round().clamp(0.0, 255.0) as u8);
+        }
+    }
+    GrayImage::new(w, h, pixels)
 }
 
 /// Stretches the 1st-99th percentile range to 0-255; `None` when it is already full.

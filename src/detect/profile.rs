@@ -44,7 +44,7 @@ pub struct ProfileFit {
 pub const MAX_SHIFT_MODULES: f64 = 0.75;
 /// Fewest profile samples worth fitting.
 pub const MIN_SAMPLES: usize = 8;
-const LM_ITERATIONS: usize = 15;
+const LM_ITERATIONS: usize = 8;
 
 /// erf, Abramowitz & Stegun 7.1.26 (|error| < 1.5e-7).
 fn erf(x: f64) -> f64 {
@@ -124,8 +124,8 @@ pub fn fit_profile(
     }
     // Coarse scan of δ with the levels solved exactly, so that LM starts in the right basin.
     let mut best: Option<(f64, Vector4<f64>)> = None;
-    for k in -6..=6 {
-        let delta = f64::from(k) * 0.125;
+    for k in -3..=3 {
+        let delta = f64::from(k) * 0.25;
         let (w, dk) = levels(runs, d, intensity, delta, sigma0);
         let p = Vector4::new(delta, sigma0, w, dk);
         let c = cost(runs, d, intensity, &p);
@@ -147,7 +147,7 @@ pub fn fit_profile(
             jtr += j * r;
         }
         let mut improved = false;
-        for _ in 0..8 {
+        for _ in 0..4 {
             let mut a = jtj;
             for k in 0..4 {
                 a[(k, k)] *= 1.0 + lambda;
@@ -161,14 +161,10 @@ pub fn fit_profile(
             q[1] = q[1].clamp(0.02, 3.0);
             let cq = cost(runs, d, intensity, &q);
             if cq < c {
-                let small = step[0].abs() < 1e-5;
+                improved = step[0].abs() > 1e-5;
                 p = q;
                 c = cq;
                 lambda = (lambda * 0.3).max(1e-9);
-                improved = true;
-                if small {
-                    break;
-                }
                 break;
             }
             lambda *= 10.0;
