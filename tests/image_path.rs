@@ -250,12 +250,12 @@ fn estimate_image_returns_corners_and_pose_of_a_rendered_jpeg() {
 }
 
 #[test]
-fn finders_is_the_default_for_reprojection_and_refused_for_paper() {
+fn corners_is_the_default_and_finders_is_refused_for_paper() {
     let s = scene("default points", [0.0, 0.0, 350.0], [10.0, 0.0, 0.0]);
     let r = photo(&s, 5);
     let response =
         estimate_image(&r.encoded, &request(None), &DecodeLimits::default()).expect("estimates");
-    assert_eq!(response.markers[0].points_used, PointsDto::Finders);
+    assert_eq!(response.markers[0].points_used, PointsDto::Corners);
     let err = max_corner_error_px(&response.markers[0].corners_px, &r.truth.corners_px);
     assert!(err < CORNER_TOL_PX, "corner error {err} px");
     let mut paper = request(Some("finders"));

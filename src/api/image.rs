@@ -16,8 +16,8 @@
 //!   problem document an error response would carry); the other markers are unaffected.
 //! - `points = "finders"` solves the pose from the twelve finder-pattern corners. It needs
 //!   `method = "reprojection"` (the other methods are defined on four corners): asking for
-//!   both is a 422 `points_need_reprojection`. When `points` is omitted it is `finders` for
-//!   `reprojection` and `corners` otherwise. A marker whose finder corners could not all be
+//!   both is a 422 `points_need_reprojection`. When `points` is omitted it is `corners`
+//!   ([`DEFAULT_POINTS`]: on the 200-image benchmark finders did not win, see docs/detection.md). A marker whose finder corners could not all be
 //!   measured falls back to its four corners, and `points_used` says so.
 
 use super::problem::{ErrorCode, Problem};
@@ -96,7 +96,7 @@ pub struct ImageRequest {
     /// Detector library (default `auto`).
     #[serde(default)]
     pub detector: DetectorDto,
-    /// Points to solve from: default `finders` with `reprojection`, `corners` otherwise.
+    /// Points to solve from (default `corners`; `finders` needs `reprojection`).
     #[serde(default)]
     pub points: Option<PointsDto>,
 }
@@ -322,7 +322,7 @@ impl ImageRequest {
 
 /// The default `points` with `method = reprojection`, chosen from the accuracy benchmark
 /// (`docs/detection.md`).
-pub const DEFAULT_POINTS: PointsDto = PointsDto::Finders;
+pub const DEFAULT_POINTS: PointsDto = PointsDto::Corners;
 
 /// The problem for an image that could not be decoded.
 pub fn problem_from_decode_error(err: &decode::DecodeError) -> Problem {
