@@ -7,6 +7,8 @@
 //! | [`geometry`] | frames, camera and distortion, marker, corner quadrilaterals, Euler angles (core) |
 //! | [`estimate`] | pose from four corners: `paper`, `depth-newton`, `reprojection` (core) |
 //! | [`sim`] | the paper's simulation: grid, Table 10, heatmaps, Tables 5-9, noisy datasets |
+//! | [`detect`] | image bytes to QR codes: decoding, detector backends, sub-pixel corners |
+//! | [`render`] | synthetic photos of a QR code at a known pose, with ground truth |
 //! | [`api`] | wire types shared by the HTTP service and the CLI, and their validation |
 //! | [`config`] | the settings of `qrpose serve`: flags, environment fallbacks, validation |
 //! | [`telemetry`] | logging setup: text or JSON lines on standard error |
@@ -16,8 +18,10 @@
 
 pub mod api;
 pub mod config;
+pub mod detect;
 pub mod estimate;
 pub mod geometry;
 pub mod http;
+pub mod render;
 pub mod sim;
 pub mod telemetry;

@@ -1,4 +1,4 @@
-//! The dependency rule of STYLE.md: the numerical core, the detector and the simulation never
+//! The dependency rule of STYLE.md: the numerical core, the detector, the renderer and the simulation never
 //! name the HTTP stack, and the wire types name no web framework.
 
 use std::path::{Path, PathBuf};
@@ -61,7 +61,7 @@ fn assert_layer_free_of(module: &str, crates: &[&str]) {
 #[test]
 fn core_detector_and_simulation_never_name_the_http_stack_or_openapi() {
     let forbidden: Vec<&str> = HTTP_CRATES.iter().copied().chain(["utoipa"]).collect();
-    for module in ["geometry", "estimate", "detect", "sim"] {
+    for module in ["geometry", "estimate", "detect", "sim", "render"] {
         assert_layer_free_of(module, &forbidden);
     }
 }

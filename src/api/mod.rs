@@ -5,6 +5,7 @@
 //! get wrong is refused here as a [`problem::Problem`]. No HTTP framework is named in this
 //! module.
 
+pub mod image;
 pub mod problem;
 pub mod request;
 pub mod response;

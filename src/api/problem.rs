@@ -55,6 +55,11 @@ pub enum ErrorCode {
     UndecodableImage,
     /// 413: the image declares more pixels than the configured limit.
     ImageTooLarge,
+    /// 422: the requested detector backend is not built into this server (zxing-cpp needs
+    /// the `zxing-cpp` cargo feature).
+    DetectorUnavailable,
+    /// 422: `points = finders` was asked for with a method other than `reprojection`.
+    PointsNeedReprojection,
     /// 413: the request body exceeds the configured limit.
     PayloadTooLarge,
     /// 415: the content type is not one this endpoint accepts.
@@ -115,6 +120,8 @@ impl ErrorCode {
             NoSolution => "No pose fits the corners",
             UndecodableImage => "Undecodable image",
             ImageTooLarge => "Image too large",
+            DetectorUnavailable => "Detector not available",
+            PointsNeedReprojection => "Finder points need the reprojection method",
             PayloadTooLarge => "Payload too large",
             UnsupportedMediaType => "Unsupported media type",
             NotFound => "Not found",

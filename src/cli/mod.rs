@@ -7,6 +7,7 @@
 mod estimate;
 mod healthcheck;
 mod openapi;
+mod render;
 mod serve;
 mod simulate;
 
@@ -38,6 +39,8 @@ pub enum Command {
     Openapi,
     /// Exit 0 when the service's /healthz answers 200 (for container health checks).
     Healthcheck(healthcheck::HealthcheckArgs),
+    /// Render a synthetic photo of a QR code at a given pose; prints its ground truth.
+    Render(render::RenderArgs),
 }
 
 /// Runs the parsed command line.
@@ -51,5 +54,6 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Serve(args) => serve::run(args),
         Command::Openapi => openapi::run(),
         Command::Healthcheck(args) => healthcheck::run(&args),
+        Command::Render(args) => render::run(&args),
     }
 }

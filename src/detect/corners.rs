@@ -1,0 +1,712 @@
+//! Sub-pixel corners of a QR symbol, whatever backend found it.
+//!
+//! Backends return whole-pixel corners (rqrr, rxing, zxing-cpp). Starting from them:
+//!
+//! 1. **Module count** N: from the backend when it knows the version (rqrr, zxing-cpp),
+//!    otherwise the N whose function patterns (finders, separators, timing) match best.
+//! 2. **Module map**: the function patterns (three finders, separators, timing) are known;
+//!    the other modules are read at their centres through the current homography.
+//! 3. **Edge observations**: across every module boundary on the symbol's outer sides and
+//!    on the four sides of each finder pattern, a 1-D profile is fitted with the blurred
+//!    module pattern it must show ([`super::profile`]); each fit puts one image point on
+//!    a known line of the module grid (u = 0, 7, N − 7, N or v = the same).
+//! 4. **Homography**: the module-to-image homography that puts every observed point on its
+//!    line, by iteratively reweighted linear least squares (Sturm's reweighting turns the
+//!    algebraic error into module units; a Huber weight tames misread data modules).
+//!    Steps 2-4 run [`ITERATIONS`] times.
+//! 5. **Corners** are the homography at (0, 0), (N, 0), (N, N), (0, N) (qr order).
+//!    **Finder corners**: each finder's four sides are fitted as image lines from their
+//!    own observations only and intersected (twelve points, independent of the data area).
+//!
+//! Refinement never makes things silently worse: with too few observations, a poor
+//! finder-pattern match, or corners that moved further than [`MAX_MOVE_MODULES`] from the
+//! backend's, the backend corners are kept and [`Refinement::status`] says why.
+
+// Pixel and module indices are floats floored or clamped into the image or the module grid
+// (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
+#![allow(clippy::cast_possible_truncation)]
+
+use super::decode::GrayImage;
+use super::homography::{Homography, ModulePoint};
+use super::profile::{DarkRun, fit_profile};
+use crate::geometry::frames::PixelPoint;
+use nalgebra::{DMatrix, Matrix3};
+
+/// Refinement passes (module map, observations, homography).
+pub const ITERATIONS: usize = 2;
+/// Refined corners further than this from the backend's (in modules) mean a failure.
+pub const MAX_MOVE_MODULES: f64 = 2.0;
+/// Fewest pixels per module the refinement works with.
+pub const MIN_PX_PER_MODULE: f64 = 1.2;
+/// Huber threshold of the homography fit, px.
+const HUBER_PX: f64 = 0.3;
+/// Half-length of a profile across an edge, modules.
+const PROFILE_HALF_MODULES: f64 = 2.5;
+/// Most samples in one profile (cost grows with it; 24 keeps ≥ 4 per module).
+const MAX_PROFILE_SAMPLES: usize = 24;
+/// Starting blur of a profile fit, px.
+const SIGMA0_PX: f64 = 1.0;
+/// Fewest edge observations on one finder side for its line fit.
+const MIN_SIDE_OBSERVATIONS: usize = 3;
+
+/// The four sides of a square, as module-grid lines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Axis {
+    /// A line u = c (vertical in module space).
+    U,
+    /// A line v = c.
+    V,
+}
+
+/// One measured edge point on a known grid line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Observation {
+    axis: Axis,
+    /// The line's coordinate, modules.
+    c: f64,
+    /// Where along the line (the other coordinate), modules.
+    t: f64,
+    /// The measured edge point, px.
+    point: PixelPoint,
+    /// Pixels per module across the edge at this point.
+    px_per_module: f64,
+    /// Which finder side this observation lies on, if any: (finder 0..3, side 0..4).
+    finder_side: Option<(usize, usize)>,
+}
+
+/// How refinement ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RefineStatus {
+    /// Corners refined from the image.
+    Refined,
+    /// The backend's corners were kept: too few edges could be measured.
+    TooFewEdges,
+    /// The backend's corners were kept: the refined ones moved too far (the symbol is
+    /// probably misgrouped or misread).
+    MovedTooFar,
+    /// The backend's corners were kept: the symbol is too small to refine.
+    TooSmall,
+    /// The backend's corners were kept: the module count could not be determined.
+    UnknownModuleCount,
+}
+
+impl RefineStatus {
+    /// The snake_case name used on the wire.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RefineStatus::Refined => "refined",
+            RefineStatus::TooFewEdges => "too_few_edges",
+            RefineStatus::MovedTooFar => "moved_too_far",
+            RefineStatus::TooSmall => "too_small",
+            RefineStatus::UnknownModuleCount => "unknown_module_count",
+        }
+    }
+}
+
+/// Refined corners of one symbol.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refinement {
+    /// Corners in qr order (TL, TR, BR, BL), px: refined, or the backend's when
+    /// `status` is not [`RefineStatus::Refined`].
+    pub corners_px: [PixelPoint; 4],
+    /// The twelve outer corners of the three finder patterns, px (see
+    /// [`super::finders::finder_model_points`] for their order), when every finder side was measured.
+    pub finder_corners_px: Option<[PixelPoint; 12]>,
+    /// The module count N (21 for version 1, 4 more per version).
+    pub module_count: Option<usize>,
+    /// How refinement ended.
+    pub status: RefineStatus,
+    /// Edge observations used in the final homography.
+    pub observations: usize,
+}
+
+/// Module colours: `Some(true)` dark, `Some(false)` light, `None` unknown. Outside the
+/// symbol everything is light (the quiet zone).
+struct ModuleMap {
+    n: usize,
+    dark: Vec<Option<bool>>,
+}
+
+impl ModuleMap {
+    fn get(&self, i: i64, j: i64) -> Option<bool> {
+        let n = self.n as i64;
+        if i < 0 || j < 0 || i >= n || j >= n {
+            return Some(false);
+        }
+        self.dark[(j as usize) * self.n + i as usize]
+    }
+}
+
+/// The colour of function-pattern module (i, j), or `None` for a data module.
+fn function_module(n: usize, i: usize, j: usize) -> Option<bool> {
+    let finder = |di: usize, dj: usize| -> Option<bool> {
+        // A finder with its separator: 8 × 8 from its corner.
+        if di == 7 || dj == 7 {
+            return Some(false);
+        }
+        let ring = di == 0 || dj == 0 || di == 6 || dj == 6;
+        let core = (2..=4).contains(&di) && (2..=4).contains(&dj);
+        Some(ring || core)
+    };
+    if i < 8 && j < 8 {
+        return finder(i, j);
+    }
+    if i + 8 >= n && j < 8 {
+        return finder(n - 1 - i, j);
+    }
+    if i < 8 && j + 8 >= n {
+        return finder(i, n - 1 - j);
+    }
+    if j == 6 {
+        return Some(i.is_multiple_of(2));
+    }
+    if i == 6 {
+        return Some(j.is_multiple_of(2));
+    }
+    None
+}
+
+/// Light and dark reference levels: the quiet zone just outside the symbol and the finder
+/// cores. `None` when they cannot be sampled.
+fn reference_levels(image: &GrayImage, h: &Homography, n: usize) -> Option<(f64, f64)> {
+    let nf = n as f64;
+    let mut light = Vec::new();
+    for k in 0..(4 * n) {
+        let t = (k as f64 + 0.5) / 4.0;
+        for p in [
+            ModulePoint::new(t, -1.5),
+            ModulePoint::new(t, nf + 1.5),
+            ModulePoint::new(-1.5, t),
+            ModulePoint::new(nf + 1.5, t),
+        ] {
+            let x = h.map(p);
+            if let Some(i) = image.sample(x.u(), x.v()) {
+                light.push(i);
+            }
+        }
+    }
+    let mut dark = Vec::new();
+    for (u0, v0) in [(2.0, 2.0), (nf - 5.0, 2.0), (2.0, nf - 5.0)] {
+        for a in 0..3 {
+            for b in 0..3 {
+                let x = h.map(ModulePoint::new(
+                    u0 + f64::from(a) + 0.5,
+                    v0 + f64::from(b) + 0.5,
+                ));
+                if let Some(i) = image.sample(x.u(), x.v()) {
+                    dark.push(i);
+                }
+            }
+        }
+    }
+    Some((median(&mut light)?, median(&mut dark)?))
+}
+
+fn median(values: &mut [f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    Some(values[values.len() / 2])
+}
+
+/// The module map under `h`: function patterns known, data modules read at their centres.
+fn module_map(image: &GrayImage, h: &Homography, n: usize, light: f64, dark: f64) -> ModuleMap {
+    let threshold = 0.5 * (light + dark);
+    let inverted = dark > light;
+    let mut map = vec![None; n * n];
+    for j in 0..n {
+        for i in 0..n {
+            map[j * n + i] = function_module(n, i, j).or_else(|| {
+                let x = h.map(ModulePoint::new(i as f64 + 0.5, j as f64 + 0.5));
+                image
+                    .sample(x.u(), x.v())
+                    .map(|value| (value < threshold) != inverted)
+            });
+        }
+    }
+    ModuleMap { n, dark: map }
+}
+
+/// An edge site: the boundary between modules c − 1 and c along `axis`, in row/column k.
+#[derive(Debug, Clone, Copy)]
+struct Site {
+    axis: Axis,
+    c: i64,
+    k: i64,
+    finder_side: Option<(usize, usize)>,
+}
+
+/// The module colour at position `a` along the profile axis and `k` across it.
+fn colour_at(map: &ModuleMap, axis: Axis, a: i64, k: i64) -> Option<bool> {
+    match axis {
+        Axis::U => map.get(a, k),
+        Axis::V => map.get(k, a),
+    }
+}
+
+/// Edge sites: every module of the outer sides and of each finder's four sides.
+fn sites(n: usize) -> Vec<Site> {
+    let n = n as i64;
+    let mut out = Vec::new();
+    // Finders: (origin u, origin v); sides 0 top, 1 right, 2 bottom, 3 left.
+    let finders = [(0, 0), (n - 7, 0), (0, n - 7)];
+    for (f, &(u0, v0)) in finders.iter().enumerate() {
+        for k in 0..7 {
+            out.push(Site {
+                axis: Axis::V,
+                c: v0,
+                k: u0 + k,
+                finder_side: Some((f, 0)),
+            });
+            out.push(Site {
+                axis: Axis::U,
+                c: u0 + 7,
+                k: v0 + k,
+                finder_side: Some((f, 1)),
+            });
+            out.push(Site {
+                axis: Axis::V,
+                c: v0 + 7,
+                k: u0 + k,
+                finder_side: Some((f, 2)),
+            });
+            out.push(Site {
+                axis: Axis::U,
+                c: u0,
+                k: v0 + k,
+                finder_side: Some((f, 3)),
+            });
+        }
+    }
+    // Outer sides beyond the finders: top and left between the finders, right and bottom
+    // from the finder to the bottom-right corner.
+    for k in 7..(n - 7) {
+        out.push(Site {
+            axis: Axis::V,
+            c: 0,
+            k,
+            finder_side: None,
+        });
+        out.push(Site {
+            axis: Axis::U,
+            c: 0,
+            k,
+            finder_side: None,
+        });
+    }
+    for k in 7..n {
+        out.push(Site {
+            axis: Axis::U,
+            c: n,
+            k,
+            finder_side: None,
+        });
+        out.push(Site {
+            axis: Axis::V,
+            c: n,
+            k,
+            finder_side: None,
+        });
+    }
+    out
+}
+
+/// Pattern half-width read for a profile, modules on each side of the edge.
+const PATTERN_MODULES: i64 = 4;
+
+/// The dark runs across site `s` relative to the edge (d = 0), if the site is a real edge
+/// whose neighbourhood is one-dimensional enough for the 1-D model.
+fn site_runs(map: &ModuleMap, s: &Site) -> Option<Vec<DarkRun>> {
+    let before = colour_at(map, s.axis, s.c - 1, s.k)?;
+    let after = colour_at(map, s.axis, s.c, s.k)?;
+    if before == after {
+        return None;
+    }
+    // The two modules at the edge must continue along the edge on both sides, or the 2-D
+    // blur of a corner would bend the profile.
+    for dk in [-1, 1] {
+        if colour_at(map, s.axis, s.c - 1, s.k + dk)? != before
+            || colour_at(map, s.axis, s.c, s.k + dk)? != after
+        {
+            return None;
+        }
+    }
+    let mut runs = Vec::new();
+    let mut start: Option<f64> = None;
+    let lo = -PATTERN_MODULES;
+    let hi = PATTERN_MODULES;
+    for a in lo..hi {
+        let dark = colour_at(map, s.axis, s.c + a, s.k)?;
+        let x = a as f64;
+        match (dark, start) {
+            (true, None) => start = Some(if a == lo { -1e3 } else { x }),
+            (false, Some(st)) => {
+                runs.push(DarkRun { start: st, end: x });
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(st) = start {
+        runs.push(DarkRun {
+            start: st,
+            end: 1e3,
+        });
+    }
+    Some(runs)
+}
+
+fn point_on(axis: Axis, c: f64, t: f64, d: f64) -> ModulePoint {
+    match axis {
+        Axis::U => ModulePoint::new(c + d, t),
+        Axis::V => ModulePoint::new(t, c + d),
+    }
+}
+
+/// Measures every usable site under `h`.
+fn observe(image: &GrayImage, h: &Homography, map: &ModuleMap) -> Vec<Observation> {
+    let n = map.n;
+    let mut out = Vec::new();
+    for s in sites(n) {
+        let Some(runs) = site_runs(map, &s) else {
+            continue;
+        };
+        let c = s.c as f64;
+        let centre = point_on(s.axis, c, s.k as f64 + 0.5, 0.0);
+        let (ppm_u, ppm_v) = h.px_per_module(centre);
+        let (across, along) = match s.axis {
+            Axis::U => (ppm_u, ppm_v),
+            Axis::V => (ppm_v, ppm_u),
+        };
+        if across < MIN_PX_PER_MODULE {
+            continue;
+        }
+        // One profile per module (two on modules over 4 px), kept 0.2 module off the module
+        // ends; samples every 0.5 px, at most MAX_PROFILE_SAMPLES.
+        let count = if along > 4.0 { 2 } else { 1 };
+        let step_d = (0.5 / across).max(2.0 * PROFILE_HALF_MODULES / MAX_PROFILE_SAMPLES as f64);
+        let samples = (2.0 * PROFILE_HALF_MODULES / step_d).ceil() as usize;
+        for m in 0..count {
+            let t = s.k as f64 + 0.2 + 0.6 * (m as f64 + 0.5) / count as f64;
+            let mut d = Vec::with_capacity(samples);
+            let mut intensity = Vec::with_capacity(samples);
+            for q in 0..=samples {
+                let x = -PROFILE_HALF_MODULES + q as f64 * step_d;
+                let p = h.map(point_on(s.axis, c, t, x));
+                if let Some(i) = image.sample(p.u(), p.v()) {
+                    d.push(x);
+                    intensity.push(i);
+                }
+            }
+            if d.len() <= samples / 2 {
+                continue;
+            }
+            let Some(fit) = fit_profile(&runs, &d, &intensity, SIGMA0_PX / across) else {
+                continue;
+            };
+            out.push(Observation {
+                axis: s.axis,
+                c,
+                t,
+                point: h.map(point_on(s.axis, c, t, fit.delta)),
+                px_per_module: across,
+                finder_side: s.finder_side,
+            });
+        }
+    }
+    out
+}
+
+/// The homography (module → image) that best puts each observation on its grid line.
+fn fit_homography(obs: &[Observation], start: &Homography) -> Option<Homography> {
+    if obs.len() < 8 {
+        return None;
+    }
+    // Normalise image coordinates.
+    let n = obs.len() as f64;
+    let (mx, my) = obs.iter().fold((0.0, 0.0), |(a, b), o| {
+        (a + o.point.u() / n, b + o.point.v() / n)
+    });
+    let scale = obs
+        .iter()
+        .map(|o| (o.point.u() - mx).hypot(o.point.v() - my))
+        .sum::<f64>()
+        / n;
+    if scale <= 0.0 {
+        return None;
+    }
+    let s = 1.0 / scale;
+    let t = Matrix3::new(s, 0.0, -s * mx, 0.0, s, -s * my, 0.0, 0.0, 1.0);
+    let t_inv = t.try_inverse()?;
+    // G maps normalised image points to module coordinates: G = H⁻¹ · T⁻¹.
+    let mut g = start.matrix().try_inverse()? * t_inv;
+    let mut weights = vec![1.0; obs.len()];
+    for _ in 0..6 {
+        let mut a = DMatrix::<f64>::zeros(obs.len(), 9);
+        for (k, o) in obs.iter().enumerate() {
+            let x = t * nalgebra::Vector3::new(o.point.u(), o.point.v(), 1.0);
+            let w3 = g.row(2).dot(&x.transpose());
+            if w3.abs() < 1e-12 {
+                return None;
+            }
+            // Module-unit residual = row · g / w3; times px per module for pixels.
+            let wk = weights[k] * o.px_per_module / w3;
+            let base = match o.axis {
+                Axis::U => 0,
+                Axis::V => 3,
+            };
+            for c in 0..3 {
+                a[(k, base + c)] = wk * x[c];
+                a[(k, 6 + c)] = -wk * o.c * x[c];
+            }
+        }
+        let svd = (a.transpose() * &a).symmetric_eigen();
+        let (imin, _) = svd
+            .eigenvalues
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))?;
+        let v = svd.eigenvectors.column(imin);
+        g = Matrix3::new(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]);
+        // Huber weights from the pixel residuals.
+        for (k, o) in obs.iter().enumerate() {
+            let r = residual_px(&g, &t, o).abs();
+            weights[k] = if r <= HUBER_PX { 1.0 } else { HUBER_PX / r };
+        }
+    }
+    let h = (g * t).try_inverse()?;
+    Homography::from_matrix(h / h[(2, 2)])
+}
+
+fn residual_px(g: &Matrix3<f64>, t: &Matrix3<f64>, o: &Observation) -> f64 {
+    let x = t * nalgebra::Vector3::new(o.point.u(), o.point.v(), 1.0);
+    let m = g * x;
+    let coord = match o.axis {
+        Axis::U => m.x / m.z,
+        Axis::V => m.y / m.z,
+    };
+    (coord - o.c) * o.px_per_module
+}
+
+/// A line a·u + b·v = c in the image, (a, b) unit.
+#[derive(Debug, Clone, Copy)]
+struct Line {
+    a: f64,
+    b: f64,
+    c: f64,
+}
+
+/// Total-least-squares line through points, with one Huber reweighting.
+fn fit_line(points: &[PixelPoint]) -> Option<Line> {
+    if points.len() < 2 {
+        return None;
+    }
+    let mut w = vec![1.0; points.len()];
+    let mut line = None;
+    for _ in 0..3 {
+        let sw: f64 = w.iter().sum();
+        let (mu, mv) = points.iter().zip(&w).fold((0.0, 0.0), |(a, b), (p, wk)| {
+            (a + wk * p.u() / sw, b + wk * p.v() / sw)
+        });
+        let (mut suu, mut suv, mut svv) = (0.0, 0.0, 0.0);
+        for (p, wk) in points.iter().zip(&w) {
+            let (du, dv) = (p.u() - mu, p.v() - mv);
+            suu += wk * du * du;
+            suv += wk * du * dv;
+            svv += wk * dv * dv;
+        }
+        // Normal = eigenvector of the smaller eigenvalue of the scatter matrix.
+        let angle = 0.5 * (2.0 * suv).atan2(suu - svv);
+        let (a, b) = (-angle.sin(), angle.cos());
+        let l = Line {
+            a,
+            b,
+            c: a * mu + b * mv,
+        };
+        for (p, wk) in points.iter().zip(w.iter_mut()) {
+            let r = (l.a * p.u() + l.b * p.v() - l.c).abs();
+            *wk = if r <= HUBER_PX { 1.0 } else { HUBER_PX / r };
+        }
+        line = Some(l);
+    }
+    line
+}
+
+fn intersect(l1: &Line, l2: &Line) -> Option<PixelPoint> {
+    let det = l1.a * l2.b - l1.b * l2.a;
+    if det.abs() < 1e-9 {
+        return None;
+    }
+    Some(PixelPoint::new(
+        (l1.c * l2.b - l1.b * l2.c) / det,
+        (l1.a * l2.c - l1.c * l2.a) / det,
+    ))
+}
+
+/// Finder corners from per-side line fits: `None` unless all twelve sides were measured.
+fn finder_corners(obs: &[Observation]) -> Option<[PixelPoint; 12]> {
+    let mut out = [PixelPoint::new(0.0, 0.0); 12];
+    for f in 0..3 {
+        let mut lines = [None; 4];
+        for (side, line) in lines.iter_mut().enumerate() {
+            let points: Vec<PixelPoint> = obs
+                .iter()
+                .filter(|o| o.finder_side == Some((f, side)))
+                .map(|o| o.point)
+                .collect();
+            if points.len() < MIN_SIDE_OBSERVATIONS {
+                return None;
+            }
+            *line = fit_line(&points);
+        }
+        let [top, right, bottom, left] = lines.map(|l| l.ok_or(()));
+        let (top, right, bottom, left) = (top.ok()?, right.ok()?, bottom.ok()?, left.ok()?);
+        out[4 * f] = intersect(&top, &left)?;
+        out[4 * f + 1] = intersect(&top, &right)?;
+        out[4 * f + 2] = intersect(&bottom, &right)?;
+        out[4 * f + 3] = intersect(&bottom, &left)?;
+    }
+    Some(out)
+}
+
+/// How well the function patterns (finders, separators, timing) under the corners match
+/// an N-module symbol, in [−1, 1]: the mean signed darkness at their module centres.
+fn function_pattern_score(image: &GrayImage, corners: &[PixelPoint; 4], n: usize) -> Option<f64> {
+    let h = Homography::from_corners(corners, n as f64)?;
+    let (light, dark) = quad_levels(image, corners)?;
+    let contrast = light - dark;
+    if contrast.abs() < 1.0 {
+        return None;
+    }
+    let mid = 0.5 * (light + dark);
+    let mut score = 0.0;
+    let mut count = 0.0;
+    for j in 0..n {
+        for i in 0..n {
+            let Some(expected_dark) = function_module(n, i, j) else {
+                continue;
+            };
+            let x = h.map(ModulePoint::new(i as f64 + 0.5, j as f64 + 0.5));
+            let value = image.sample(x.u(), x.v())?;
+            let darkness = ((mid - value) / (0.5 * contrast)).clamp(-1.0, 1.0);
+            score += if expected_dark { darkness } else { -darkness };
+            count += 1.0;
+        }
+    }
+    (count > 0.0).then(|| score / count)
+}
+
+/// Light and dark levels inside a quad (90th and 10th percentiles of a 32 × 32 grid), for
+/// the module-count search, which must not depend on N.
+fn quad_levels(image: &GrayImage, corners: &[PixelPoint; 4]) -> Option<(f64, f64)> {
+    let h = Homography::from_corners(corners, 1.0)?;
+    let mut values = Vec::with_capacity(1024);
+    for a in 0..32 {
+        for b in 0..32 {
+            let x = h.map(ModulePoint::new(
+                (f64::from(a) + 0.5) / 32.0,
+                (f64::from(b) + 0.5) / 32.0,
+            ));
+            if let Some(v) = image.sample(x.u(), x.v()) {
+                values.push(v);
+            }
+        }
+    }
+    if values.len() < 100 {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    let at = |q: f64| values[((values.len() - 1) as f64 * q) as usize];
+    Some((at(0.9), at(0.1)))
+}
+
+/// The module count whose function patterns fit best, among versions with at least
+/// [`MIN_PX_PER_MODULE`] pixels per module.
+pub fn estimate_module_count(image: &GrayImage, corners: &[PixelPoint; 4]) -> Option<usize> {
+    let side_px = (0..4)
+        .map(|i| (corners[i].0 - corners[(i + 1) % 4].0).norm())
+        .fold(f64::INFINITY, f64::min);
+    let mut best: Option<(f64, usize)> = None;
+    for version in 1..=40usize {
+        let n = 17 + 4 * version;
+        if side_px / (n as f64) < MIN_PX_PER_MODULE {
+            break;
+        }
+        if let Some(score) = function_pattern_score(image, corners, n)
+            && best.is_none_or(|(s, _)| score > s)
+        {
+            best = Some((score, n));
+        }
+    }
+    best.filter(|(s, _)| *s > 0.3).map(|(_, n)| n)
+}
+
+/// Refines a backend's corners (qr order). `module_count` is N when the backend knows it.
+pub fn refine_corners(
+    image: &GrayImage,
+    backend_corners: &[PixelPoint; 4],
+    module_count: Option<usize>,
+) -> Refinement {
+    let unrefined = |status, module_count| Refinement {
+        corners_px: *backend_corners,
+        finder_corners_px: None,
+        module_count,
+        status,
+        observations: 0,
+    };
+    let Some(n) = module_count.or_else(|| estimate_module_count(image, backend_corners)) else {
+        return unrefined(RefineStatus::UnknownModuleCount, None);
+    };
+    let Some(mut h) = Homography::from_corners(backend_corners, n as f64) else {
+        return unrefined(RefineStatus::TooFewEdges, Some(n));
+    };
+    let (ppm_u, ppm_v) = h.px_per_module(ModulePoint::new(n as f64 / 2.0, n as f64 / 2.0));
+    if ppm_u.min(ppm_v) < MIN_PX_PER_MODULE {
+        return unrefined(RefineStatus::TooSmall, Some(n));
+    }
+    let mut obs = Vec::new();
+    for _ in 0..ITERATIONS {
+        let Some((light, dark)) = reference_levels(image, &h, n) else {
+            return unrefined(RefineStatus::TooFewEdges, Some(n));
+        };
+        let map = module_map(image, &h, n, light, dark);
+        obs = observe(image, &h, &map);
+        match fit_homography(&obs, &h) {
+            Some(next) => h = next,
+            None => return unrefined(RefineStatus::TooFewEdges, Some(n)),
+        }
+    }
+    let nf = n as f64;
+    let corners_px =
+        [(0.0, 0.0), (nf, 0.0), (nf, nf), (0.0, nf)].map(|(u, v)| h.map(ModulePoint::new(u, v)));
+    let module_px = (ppm_u + ppm_v) / 2.0;
+    let moved = corners_px
+        .iter()
+        .zip(backend_corners)
+        .map(|(a, b)| (a.0 - b.0).norm())
+        .fold(0.0, f64::max);
+    if moved.is_nan() || moved > MAX_MOVE_MODULES * module_px.max(1.5) {
+        return unrefined(RefineStatus::MovedTooFar, Some(n));
+    }
+    Refinement {
+        corners_px,
+        finder_corners_px: finder_corners(&obs),
+        module_count: Some(n),
+        status: RefineStatus::Refined,
+        observations: obs.len(),
+    }
+}
+
+/// Scores of every candidate module count, for diagnostics.
+pub fn module_count_scores(
+    image: &GrayImage,
+    corners: &[PixelPoint; 4],
+) -> Vec<(usize, Option<f64>)> {
+    (1..=10usize)
+        .map(|v| {
+            let n = 17 + 4 * v;
+            (n, function_pattern_score(image, corners, n))
+        })
+        .collect()
+}

@@ -1,0 +1,350 @@
+//! Image to QR codes: decode the bytes, find every symbol with one or more backends, read
+//! it, and refine its corners to a fraction of a pixel. No async, no HTTP.
+//!
+//! - [`decode`]: bytes → [`decode::GrayImage`], with [`decode::DecodeLimits`].
+//! - Backends behind [`Detector`]: [`rqrr`] and [`rxing`] always; `zxing_cpp` with the
+//!   `zxing-cpp` cargo feature. [`DetectorChoice::Auto`] uses the best one built and falls
+//!   back to the others, then to second passes of the best one on a contrast-stretched,
+//!   half-scale (large images), double-scale (small images) or inverted copy, when it reads
+//!   nothing; results are merged by position.
+//! - [`corners`]: sub-pixel corners and the twelve finder-pattern corners, whatever the
+//!   backend ([`profile`] measures single edges, [`homography`] maps the module grid).
+//!
+//! Conventions: corners in `"qr"` order (top-left, top-right, bottom-right, bottom-left of
+//! the symbol), pixels with integer pixel centres (SPEC section 1).
+
+// Pixel and module indices are floats floored or clamped into the image or the module grid
+// (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
+#![allow(clippy::cast_possible_truncation)]
+
+pub mod corners;
+pub mod decode;
+pub mod finders;
+pub mod homography;
+pub mod profile;
+pub mod rqrr;
+pub mod rxing;
+#[cfg(feature = "zxing-cpp")]
+pub mod zxing_cpp;
+
+use crate::geometry::frames::PixelPoint;
+use corners::{RefineStatus, refine_corners};
+use decode::GrayImage;
+use thiserror::Error;
+
+/// A detector library.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Backend {
+    /// rqrr (pure Rust).
+    Rqrr,
+    /// rxing (pure Rust port of ZXing).
+    Rxing,
+    /// zxing-cpp (C++, cargo feature `zxing-cpp`).
+    ZxingCpp,
+}
+
+impl Backend {
+    /// The wire name: "rqrr", "rxing", "zxing-cpp".
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Backend::Rqrr => "rqrr",
+            Backend::Rxing => "rxing",
+            Backend::ZxingCpp => "zxing-cpp",
+        }
+    }
+
+    /// Whether this build contains the backend.
+    pub fn is_built(self) -> bool {
+        match self {
+            Backend::Rqrr | Backend::Rxing => true,
+            Backend::ZxingCpp => cfg!(feature = "zxing-cpp"),
+        }
+    }
+}
+
+/// What the caller asks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DetectorChoice {
+    /// The best backend built, with fallbacks (see the module doc).
+    #[default]
+    Auto,
+    /// Exactly this backend, one pass.
+    Only(Backend),
+}
+
+/// A symbol as a backend reports it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// Corners in qr order, px, as the backend gives them (whole pixels), corrected for
+    /// known backend offsets.
+    pub corners_px: [PixelPoint; 4],
+    /// The symbol's content bytes; `None` when found but not decodable.
+    pub payload: Option<Vec<u8>>,
+    /// The content as text, as the backend interprets it (ECI / character set), if it is text.
+    pub text: Option<String>,
+    /// Modules per side (21 + 4 per version above 1), when the backend knows it.
+    pub module_count: Option<usize>,
+    /// Who found it.
+    pub backend: Backend,
+}
+
+/// One QR detector library.
+pub trait Detector {
+    /// Which library this is.
+    fn backend(&self) -> Backend;
+    /// Every QR symbol the library finds. A failure inside the library (including a panic)
+    /// counts as finding nothing.
+    fn detect(&self, image: &GrayImage) -> Vec<Candidate>;
+}
+
+/// Why detection could not run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+pub enum DetectError {
+    /// The requested backend is not in this build (zxing-cpp needs the cargo feature).
+    #[error("the {} detector is not built into this binary", backend.as_str())]
+    BackendNotBuilt {
+        /// The backend asked for.
+        backend: Backend,
+    },
+}
+
+/// The detector for a backend.
+///
+/// # Errors
+/// [`DetectError::BackendNotBuilt`] for zxing-cpp in a build without the feature.
+pub fn detector_for(backend: Backend) -> Result<Box<dyn Detector>, DetectError> {
+    match backend {
+        Backend::Rqrr => Ok(Box::new(rqrr::RqrrDetector)),
+        Backend::Rxing => Ok(Box::new(rxing::RxingDetector)),
+        #[cfg(feature = "zxing-cpp")]
+        Backend::ZxingCpp => Ok(Box::new(zxing_cpp::ZxingCppDetector)),
+        #[cfg(not(feature = "zxing-cpp"))]
+        Backend::ZxingCpp => Err(DetectError::BackendNotBuilt { backend }),
+    }
+}
+
+/// The backends `auto` tries, best first.
+pub fn auto_order() -> Vec<Backend> {
+    [Backend::ZxingCpp, Backend::Rxing, Backend::Rqrr]
+        .into_iter()
+        .filter(|b| b.is_built())
+        .collect()
+}
+
+/// One detected symbol with refined corners.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DetectedCode {
+    /// What the backend reported.
+    pub candidate: Candidate,
+    /// Refined corners and finder corners.
+    pub refinement: corners::Refinement,
+}
+
+impl DetectedCode {
+    /// The corners to use, px, qr order: refined when refinement succeeded.
+    pub fn corners_px(&self) -> &[PixelPoint; 4] {
+        &self.refinement.corners_px
+    }
+    /// Whether the corners are refined.
+    pub fn is_refined(&self) -> bool {
+        self.refinement.status == RefineStatus::Refined
+    }
+}
+
+/// Centroid of four corners.
+fn centroid(c: &[PixelPoint; 4]) -> PixelPoint {
+    PixelPoint::new(
+        c.iter().map(PixelPoint::u).sum::<f64>() / 4.0,
+        c.iter().map(PixelPoint::v).sum::<f64>() / 4.0,
+    )
+}
+
+fn shortest_side_px(c: &[PixelPoint; 4]) -> f64 {
+    (0..4)
+        .map(|i| (c[i].0 - c[(i + 1) % 4].0).norm())
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// True when two candidates are the same symbol (centres closer than half a side).
+fn same_symbol(a: &Candidate, b: &Candidate) -> bool {
+    let d = (centroid(&a.corners_px).0 - centroid(&b.corners_px).0).norm();
+    d < 0.5 * shortest_side_px(&a.corners_px).min(shortest_side_px(&b.corners_px))
+}
+
+/// Adds `new` candidates to `into`, replacing an undecoded one by a decoded duplicate.
+pub fn merge_candidates(into: &mut Vec<Candidate>, new: Vec<Candidate>) {
+    for c in new {
+        match into.iter_mut().find(|e| same_symbol(e, &c)) {
+            Some(existing) => {
+                if existing.payload.is_none() && c.payload.is_some() {
+                    *existing = c;
+                }
+            }
+            None => into.push(c),
+        }
+    }
+}
+
+/// Front-end variants of an image for a second pass.
+fn second_pass_images(image: &GrayImage) -> Vec<(GrayImage, f64)> {
+    let mut out = Vec::new();
+    if let Some(stretched) = stretch_contrast(image) {
+        out.push((stretched, 1.0));
+    }
+    if image.width().min(image.height()) >= 1200
+        && let Some(half) = downscale_half(image)
+    {
+        out.push((half, 2.0));
+    }
+    if image.width().max(image.height()) <= 600
+        && let Some(double) = upscale_double(image)
+    {
+        out.push((double, 0.5));
+    }
+    if let Some(inverted) = invert(image) {
+        out.push((inverted, 1.0));
+    }
+    out
+}
+
+/// The photographic negative, for light-on-dark codes.
+pub fn invert(image: &GrayImage) -> Option<GrayImage> {
+    let pixels = image.pixels().iter().map(|p| 255 - p).collect();
+    GrayImage::new(image.width(), image.height(), pixels)
+}
+
+/// Doubles the image by bilinear interpolation (pixel centres kept: copy pixel (x, y)
+/// samples the source at ((x + 0.5) / 2 − 0.5, (y + 0.5) / 2 − 0.5)).
+pub fn upscale_double(image: &GrayImage) -> Option<GrayImage> {
+    let (w, h) = (image.width() * 2, image.height() * 2);
+    let max_u = (image.width() - 1) as f64;
+    let max_v = (image.height() - 1) as f64;
+    let mut pixels = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let u = ((x as f64 + 0.5) / 2.0 - 0.5).clamp(0.0, max_u);
+            let v = ((y as f64 + 0.5) / 2.0 - 0.5).clamp(0.0, max_v);
+            pixels.push(image.sample(u, v).unwrap_or(0.0).round().clamp(0.0, 255.0) as u8);
+        }
+    }
+    GrayImage::new(w, h, pixels)
+}
+
+/// Stretches the 1st-99th percentile range to 0-255; `None` when it is already full.
+pub fn stretch_contrast(image: &GrayImage) -> Option<GrayImage> {
+    let mut hist = [0usize; 256];
+    for &p in image.pixels() {
+        hist[usize::from(p)] += 1;
+    }
+    let total = image.pixels().len();
+    let pct = |q: f64| {
+        let target = (q * total as f64) as usize;
+        let mut acc = 0;
+        for (value, count) in hist.iter().enumerate() {
+            acc += count;
+            if acc > target {
+                return value;
+            }
+        }
+        255
+    };
+    let (lo, hi) = (pct(0.01), pct(0.99));
+    if hi <= lo || (lo < 10 && hi > 245) {
+        return None;
+    }
+    let scale = 255.0 / (hi - lo) as f64;
+    let pixels = image
+        .pixels()
+        .iter()
+        .map(|&p| (((f64::from(p) - lo as f64) * scale).clamp(0.0, 255.0)).round() as u8)
+        .collect();
+    GrayImage::new(image.width(), image.height(), pixels)
+}
+
+/// Halves the image by 2 × 2 box averaging.
+pub fn downscale_half(image: &GrayImage) -> Option<GrayImage> {
+    let (w, h) = (image.width() / 2, image.height() / 2);
+    let mut pixels = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let s = u16::from(image.get(2 * x, 2 * y))
+                + u16::from(image.get(2 * x + 1, 2 * y))
+                + u16::from(image.get(2 * x, 2 * y + 1))
+                + u16::from(image.get(2 * x + 1, 2 * y + 1));
+            pixels.push(u8::try_from(s / 4).unwrap_or(u8::MAX));
+        }
+    }
+    GrayImage::new(w, h, pixels)
+}
+
+/// Maps candidates found on a downscaled copy (`scale` source px per copy px) back to the
+/// source: pixel centres scale about −0.5.
+fn rescale(mut c: Candidate, scale: f64) -> Candidate {
+    if scale != 1.0 {
+        c.corners_px = c
+            .corners_px
+            .map(|p| PixelPoint::new((p.u() + 0.5) * scale - 0.5, (p.v() + 0.5) * scale - 0.5));
+        // The module count measured on the copy is still right; whole-pixel corners are not.
+    }
+    c
+}
+
+/// Every candidate the choice finds in `image`, before refinement.
+///
+/// # Errors
+/// [`DetectError::BackendNotBuilt`] when a single backend is asked for that is not built.
+pub fn find_candidates(
+    image: &GrayImage,
+    choice: DetectorChoice,
+) -> Result<Vec<Candidate>, DetectError> {
+    match choice {
+        DetectorChoice::Only(backend) => Ok(detector_for(backend)?.detect(image)),
+        DetectorChoice::Auto => {
+            let order = auto_order();
+            let mut found: Vec<Candidate> = Vec::new();
+            for backend in &order {
+                let detector = detector_for(*backend)?;
+                merge_candidates(&mut found, detector.detect(image));
+                if found.iter().any(|c| c.payload.is_some()) {
+                    return Ok(found);
+                }
+            }
+            if let Some(best) = order.first() {
+                let detector = detector_for(*best)?;
+                for (variant, scale) in second_pass_images(image) {
+                    let more = detector
+                        .detect(&variant)
+                        .into_iter()
+                        .map(|c| rescale(c, scale))
+                        .collect();
+                    merge_candidates(&mut found, more);
+                    if found.iter().any(|c| c.payload.is_some()) {
+                        break;
+                    }
+                }
+            }
+            Ok(found)
+        }
+    }
+}
+
+/// Finds, reads and refines every QR symbol in `image`.
+///
+/// # Errors
+/// [`DetectError::BackendNotBuilt`] when a single backend is asked for that is not built.
+pub fn detect_codes(
+    image: &GrayImage,
+    choice: DetectorChoice,
+) -> Result<Vec<DetectedCode>, DetectError> {
+    let candidates = find_candidates(image, choice)?;
+    Ok(candidates
+        .into_iter()
+        .map(|candidate| {
+            let refinement = refine_corners(image, &candidate.corners_px, candidate.module_count);
+            DetectedCode {
+                candidate,
+                refinement,
+            }
+        })
+        .collect())
+}
