@@ -103,13 +103,23 @@ def opencv_results(header, rows):
 
 
 def qrpose_results(path):
+    """Our errors per method, plus the reprojection poses not flagged ambiguous."""
     results = {}
+    unflagged = ([], [])
+    total = 0
     with open(path) as f:
         for row in csv.DictReader(f):
             name = f"qrpose {row['method']}"
             rot, pos = results.setdefault(name, ([], []))
             rot.append(float(row["rotation_error_deg"]))
             pos.append(float(row["position_error_mm"]))
+            if row["method"] == "reprojection":
+                total += 1
+                if row["ambiguous"] == "false":
+                    unflagged[0].append(rot[-1])
+                    unflagged[1].append(pos[-1])
+    share = 100.0 * len(unflagged[0]) / max(total, 1)
+    results[f"qrpose reprojection, poses not flagged ambiguous ({share:.0f} %)"] = unflagged
     return results
 
 
