@@ -11,7 +11,8 @@ use utoipa::ToSchema;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ErrorCode {
-    /// 400: the body is not syntactically valid JSON (or is empty, or nested too deeply).
+    /// 400: the body is not syntactically valid JSON (or is empty). Deeply nested JSON is
+    /// refused as `invalid_type` (422) where the schema expects a number or object.
     MalformedJson,
     /// 400: a query parameter cannot be parsed.
     MalformedQuery,
