@@ -12,7 +12,11 @@
 //! each mode's shape (how the four corners move) and μ at k = 1 and k = 2.
 
 use nalgebra::{Matrix4, SMatrix, Vector3};
-use qrpose::geometry::{euler::EulerXyz, frames::MarkerToCamera, marker::{EDGES, INCIDENT_EDGES, Marker}};
+use qrpose::geometry::{
+    euler::EulerXyz,
+    frames::MarkerToCamera,
+    marker::{EDGES, INCIDENT_EDGES, Marker},
+};
 
 fn update_matrix(pose: &MarkerToCamera, marker: &Marker) -> Matrix4<f64> {
     let p = marker.object_points().map(|m| pose.transform(&m).0.coords);
@@ -36,13 +40,32 @@ fn update_matrix(pose: &MarkerToCamera, marker: &Marker) -> Matrix4<f64> {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let marker = Marker::try_new(50.0)?;
     let views = [
-        ("on axis, square on, 500 mm", [0.0, 0.0, 0.0], [25.0, -25.0, 500.0]),
-        ("(60, -50) mm off axis, square on, 500 mm", [0.0, 0.0, 0.0], [60.0, -50.0, 500.0]),
-        ("(60, -50) mm off axis, tilted 20° about y, 500 mm", [0.0, 20.0, 0.0], [60.0, -50.0, 500.0]),
-        ("(100, 100) mm off axis, square on, 100 mm", [0.0, 0.0, 0.0], [100.0, 100.0, 100.0]),
+        (
+            "on axis, square on, 500 mm",
+            [0.0, 0.0, 0.0],
+            [25.0, -25.0, 500.0],
+        ),
+        (
+            "(60, -50) mm off axis, square on, 500 mm",
+            [0.0, 0.0, 0.0],
+            [60.0, -50.0, 500.0],
+        ),
+        (
+            "(60, -50) mm off axis, tilted 20° about y, 500 mm",
+            [0.0, 20.0, 0.0],
+            [60.0, -50.0, 500.0],
+        ),
+        (
+            "(100, 100) mm off axis, square on, 100 mm",
+            [0.0, 0.0, 0.0],
+            [100.0, 100.0, 100.0],
+        ),
     ];
     for (name, angles, p2) in views {
-        let pose = MarkerToCamera::new(EulerXyz::from_degrees(angles[0], angles[1], angles[2]).to_rotation(), Vector3::from(p2));
+        let pose = MarkerToCamera::new(
+            EulerXyz::from_degrees(angles[0], angles[1], angles[2]).to_rotation(),
+            Vector3::from(p2),
+        );
         let ae = update_matrix(&pose, &marker);
         println!("{name}:");
         let eig = ae.complex_eigenvalues();
@@ -56,11 +79,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let m = ae - Matrix4::identity() * lambda.re;
                 let svd = m.svd(false, true);
                 let v = svd.v_t.map(|vt| vt.row(3).transpose().normalize());
-                v.map_or("?".to_owned(), |v| format!("[{:+.2} {:+.2} {:+.2} {:+.2}]", v[0], v[1], v[2], v[3]))
+                v.map_or("?".to_owned(), |v| {
+                    format!("[{:+.2} {:+.2} {:+.2} {:+.2}]", v[0], v[1], v[2], v[3])
+                })
             } else {
                 "complex pair".to_owned()
             };
-            println!("  λ = {:+.5}{:+.5}i  mode (z1..z4) {shape}  |μ| at k=1: {mu1:.5}, at k=2: {mu2:.5}", lambda.re, lambda.im);
+            println!(
+                "  λ = {:+.5}{:+.5}i  mode (z1..z4) {shape}  |μ| at k=1: {mu1:.5}, at k=2: {mu2:.5}",
+                lambda.re, lambda.im
+            );
         }
     }
     Ok(())

@@ -18,6 +18,21 @@ fn exact_quad(camera: &Camera, marker: &Marker, pose: &MarkerToCamera) -> ImageQ
     ImageQuad::try_new(corners, CornerOrder::Paper).expect("valid quad")
 }
 
+/// The pose estimated from the exact corners of `pose`.
+fn estimate_exact(
+    pose: &MarkerToCamera,
+    params: &EstimatorParams,
+) -> qrpose::estimate::PoseEstimate {
+    let (camera, marker) = setup();
+    estimate_pose(
+        &exact_quad(&camera, &marker, pose),
+        &camera,
+        &marker,
+        params,
+    )
+    .expect("pose")
+}
+
 fn setup() -> (Camera, Marker) {
     (
         Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("camera"),
@@ -27,18 +42,11 @@ fn setup() -> (Camera, Marker) {
 
 #[test]
 fn a_clearly_tilted_marker_is_not_ambiguous() {
-    let (camera, marker) = setup();
     let pose = MarkerToCamera::new(
         EulerXyz::from_degrees(35.0, 10.0, 20.0).to_rotation(),
         Vector3::new(0.0, 0.0, 400.0),
     );
-    let e = estimate_pose(
-        &exact_quad(&camera, &marker, &pose),
-        &camera,
-        &marker,
-        &EstimatorParams::default(),
-    )
-    .expect("pose");
+    let e = estimate_exact(&pose, &EstimatorParams::default());
     let a = e
         .diagnostics
         .ambiguity
@@ -58,18 +66,11 @@ fn a_clearly_tilted_marker_is_not_ambiguous() {
 fn a_small_near_frontal_marker_is_ambiguous_at_half_a_pixel_of_noise() {
     // 50 mm at 1.5 m is 33 px wide: tilting it 4° one way or the other moves its corners by
     // far less than 0.5 px, so the two poses cannot be told apart.
-    let (camera, marker) = setup();
     let pose = MarkerToCamera::new(
         EulerXyz::from_degrees(4.0, 0.0, 30.0).to_rotation(),
         Vector3::new(20.0, 10.0, 1500.0),
     );
-    let e = estimate_pose(
-        &exact_quad(&camera, &marker, &pose),
-        &camera,
-        &marker,
-        &EstimatorParams::default(),
-    )
-    .expect("pose");
+    let e = estimate_exact(&pose, &EstimatorParams::default());
     let a = e.diagnostics.ambiguity.expect("ambiguity");
     assert!(
         a.ambiguous && a.alternative_probability.is_some_and(|p| p > 0.3),
@@ -80,13 +81,7 @@ fn a_small_near_frontal_marker_is_ambiguous_at_half_a_pixel_of_noise() {
     assert!(angle_between(&a.alternative.rotation(), &pose.rotation()).to_degrees() > 4.0);
     // With a detector ten times more precise the same view is no longer ambiguous.
     let precise = EstimatorParams::default().with_corner_sigma_px(0.01);
-    let e = estimate_pose(
-        &exact_quad(&camera, &marker, &pose),
-        &camera,
-        &marker,
-        &precise,
-    )
-    .expect("pose");
+    let e = estimate_exact(&pose, &precise);
     assert!(!e.diagnostics.ambiguity.expect("ambiguity").ambiguous);
 }
 

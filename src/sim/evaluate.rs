@@ -85,7 +85,8 @@ fn judge(estimate: PoseEstimate, case: &Case, marker: &Marker, gain: Option<f64>
     }
 }
 
-fn refused() -> Outcome {
+/// The outcome of a case the estimator refused (or that could not be projected).
+pub fn refused() -> Outcome {
     Outcome {
         solved: false,
         gain: None,

@@ -4,7 +4,7 @@
 //! parallel with rayon. Noise, when asked for, is drawn from a generator seeded by the case's
 //! grid indices, so results do not depend on thread scheduling.
 
-use super::evaluate::{Outcome, evaluate};
+use super::evaluate::{Outcome, evaluate, refused};
 use super::grid::{
     ANGLE_COUNT, Case, DISTANCES_MM, FOCAL_LENGTH_MM, MARKER_SIZE_MM, ROTATION_SETS, RotationSet,
     XY_COUNT, xy_mm,
@@ -252,7 +252,7 @@ pub fn run_grid(
                         };
                         let Some(exact) = case.image_plane_corners_mm(&marker, FOCAL_LENGTH_MM)
                         else {
-                            return CaseResult::from(&refused_outcome());
+                            return CaseResult::from(&refused());
                         };
                         let corners = match &spec.noise {
                             Some(n) => noisy(exact, n, case_seed(n.seed, [si, di, i, j, a])),
@@ -280,14 +280,4 @@ pub fn run_grid(
         spec: spec.clone(),
         panels,
     })
-}
-
-fn refused_outcome() -> Outcome {
-    Outcome {
-        solved: false,
-        gain: None,
-        estimate: None,
-        angle_error_deg: f64::INFINITY,
-        depth_error_mm: f64::INFINITY,
-    }
 }
