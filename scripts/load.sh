@@ -1,14 +1,17 @@
 #!/usr/bin/env bash
 # Load test of `qrpose serve` on this machine: requests/s and p50/p99 latency of
-# POST /v1/pose/corners and GET /healthz (the ceiling) on the same server in the same run,
-# then a soak of the corners endpoint while resident memory (VmRSS) is sampled.
+# POST /v1/pose/corners, POST /v1/pose/image (a 1280x720 JPEG rendered by `qrpose render`)
+# and GET /healthz (the ceiling) on the same server in the same run, then a soak of the
+# corners endpoint while resident memory (VmRSS) is sampled.
 #
-# The two endpoints are measured in alternating rounds and each is reported by its median
+# The endpoints are measured in alternating rounds and each is reported by its median
 # round, so that load from other processes on a shared machine hits both alike. The server's
 # own CPU time per request (from /proc) is reported too: it does not depend on that load.
 #
 # Checks: zero errors (non-2xx answers or socket errors), corners rate >= 70 % of the
-# /healthz rate, RSS flat over the soak. Exit 0 when all hold, 1 otherwise.
+# /healthz rate, RSS flat over the soak, and the image endpoint reading the photo's code.
+# Exit 0 when all hold, 1 otherwise. The image endpoint has no rate target: it is bound by
+# decoding and detection (about 26 ms of CPU per 1280x720 photo, docs/detection.md).
 #
 # Usage: scripts/load.sh            (installs wrk from Debian if missing; builds release)
 # Knobs: ROUNDS=3 DURATION_S=10 SOAK_S=60 CONNECTIONS=32 WRK_THREADS=2 TARGET_RATIO=0.70
@@ -53,6 +56,25 @@ done
 BASE_URL="$(sed -n 's/^listening on //p' "$OUT/server.out")"
 [[ -n "$BASE_URL" ]] || { echo "the server did not start"; cat "$OUT/server.log"; exit 1; }
 echo "server $SERVER_PID on $BASE_URL ($(nproc) CPUs, load average $(cut -d' ' -f1 /proc/loadavg); wrk -t$WRK_THREADS -c$CONNECTIONS)"
+
+# The image endpoint's photo: a 50 mm code 400 mm in front of a 1280x720 camera (f = 1000 px),
+# tilted, blurred, noisy, unevenly lit, with background clutter; JPEG quality 90.
+"$BIN" render --out "$OUT/photo.jpg" --payload SKU-1 --marker-size-mm 50 --x-mm 20 --z-mm 400 \
+  --alpha-deg 20 --beta-deg -10 --blur-px 0.8 --noise 2 --lighting 0.2 --clutter 10 --seed 3 \
+  >"$OUT/photo.json"
+IMAGE_QUERY="fx_px=1000&fy_px=1000&cx_px=639.5&cy_px=359.5&marker_size_mm=50"
+# Measure real work only: the server must read the code in this photo.
+if ! curl -sS -X POST "$BASE_URL/v1/pose/image?$IMAGE_QUERY" -H 'Content-Type: image/jpeg' \
+  --data-binary "@$OUT/photo.jpg" | grep -q '"payload":"SKU-1"'; then
+  echo "FAIL: the image endpoint did not read the photo's code"; exit 1
+fi
+cat >"$OUT/image.lua" <<LUA
+wrk.method = "POST"
+wrk.headers["Content-Type"] = "image/jpeg"
+local f = assert(io.open("$OUT/photo.jpg", "rb"))
+wrk.body = f:read("*a")
+f:close()
+LUA
 
 cat >"$OUT/corners.lua" <<'LUA'
 wrk.method = "POST"
@@ -105,17 +127,17 @@ median_round() {
 echo "warm-up"
 run warmup-healthz 3 /healthz
 run warmup-corners 3 /v1/pose/corners "$OUT/corners.lua"
+run warmup-image 3 "/v1/pose/image?$IMAGE_QUERY" "$OUT/image.lua"
 
 for ((r = 1; r <= ROUNDS; r++)); do
-  echo "round $r/$ROUNDS: GET /healthz ${DURATION_S}s, POST /v1/pose/corners ${DURATION_S}s"
+  echo "round $r/$ROUNDS: GET /healthz, POST /v1/pose/corners, POST /v1/pose/image, ${DURATION_S}s each"
   run "healthz-r$r" "$DURATION_S" /healthz
   run "corners-r$r" "$DURATION_S" /v1/pose/corners "$OUT/corners.lua"
-  # --- POST /v1/pose/image (1280x720 JPEG): measure it here once the image route lands
-  # --- (issue 5): `run "image-r$r" "$DURATION_S" /v1/pose/image "$OUT/image.lua"` with a Lua
-  # --- script posting the JPEG as image/jpeg, plus its row in the table below.
+  run "image-r$r" "$DURATION_S" "/v1/pose/image?$IMAGE_QUERY" "$OUT/image.lua"
 done
 healthz="$(median_round healthz)"
 corners="$(median_round corners)"
+image="$(median_round image)"
 
 echo "soak: POST /v1/pose/corners for ${SOAK_S}s, RSS every ${SAMPLE_S}s"
 run soak "$SOAK_S" /v1/pose/corners "$OUT/corners.lua" &
@@ -137,7 +159,7 @@ rss_base="${rss[1]}"
 rss_max_late="$(printf '%s\n' "${rss[@]: -3}" | sort -n | tail -1)"
 rss_growth=$(( rss_max_late - rss_base ))
 total_errors=0
-for f in "$OUT"/healthz-r*.txt "$OUT"/corners-r*.txt "$OUT"/soak.txt; do
+for f in "$OUT"/healthz-r*.txt "$OUT"/corners-r*.txt "$OUT"/image-r*.txt "$OUT"/soak.txt; do
   total_errors=$(( total_errors + $(errors "$(basename "$f" .txt)") ))
 done
 
@@ -148,6 +170,7 @@ row() { echo "| $1 | $(rate "$2") | $(pct "$2" 50) | $(pct "$2" 99) | $(cpu_us "
 row "GET /healthz (median of $ROUNDS × ${DURATION_S} s)" "$healthz"
 row "POST /v1/pose/corners (median of $ROUNDS × ${DURATION_S} s)" "$corners"
 row "POST /v1/pose/corners (${SOAK_S} s soak)" soak
+row "POST /v1/pose/image, 1280x720 JPEG (median of $ROUNDS × ${DURATION_S} s)" "$image"
 echo
 echo "corners / healthz rate: $ratio (target >= $TARGET_RATIO)"
 echo "RSS during the soak, KiB, every ${SAMPLE_S}s: ${rss[*]}"

@@ -35,6 +35,13 @@ pub const MAX_THREADS: usize = 1024;
 pub const DEFAULT_SHUTDOWN_GRACE_MS: u64 = 10_000;
 /// Largest accepted shutdown grace period, ms (10 minutes).
 pub const MAX_SHUTDOWN_GRACE_MS: u64 = 600_000;
+/// Default limit on an uploaded image's declared width × height, pixels (50 MP; an 8160 ×
+/// 6120 phone photo is 49.9 MP). Larger images get 413 `image_too_large` before any pixel is
+/// decoded.
+pub const DEFAULT_MAX_IMAGE_PIXELS: u64 = 50_000_000;
+/// Largest accepted image pixel limit (1 GP). Memory per image in flight: 1 byte per pixel
+/// for a decoded JPEG, up to 8 while a 16-bit RGBA PNG is decoded, plus the detector's copies.
+pub const MAX_MAX_IMAGE_PIXELS: u64 = 1_000_000_000;
 
 /// Log line format.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
@@ -74,6 +81,10 @@ pub struct ServeArgs {
     /// Time in-flight requests get to finish after SIGTERM or SIGINT, ms.
     #[arg(long, env = "QRPOSE_SHUTDOWN_GRACE_MS", default_value_t = DEFAULT_SHUTDOWN_GRACE_MS)]
     pub shutdown_grace_ms: u64,
+    /// Largest image (declared width × height, pixels) that `POST /v1/pose/image` decodes;
+    /// larger ones get 413 `image_too_large`.
+    #[arg(long, env = "QRPOSE_MAX_IMAGE_PIXELS", default_value_t = DEFAULT_MAX_IMAGE_PIXELS)]
+    pub max_image_pixels: u64,
 }
 
 impl Default for ServeArgs {
@@ -87,6 +98,7 @@ impl Default for ServeArgs {
             queue_length: DEFAULT_QUEUE_LENGTH,
             log_format: LogFormat::Text,
             shutdown_grace_ms: DEFAULT_SHUTDOWN_GRACE_MS,
+            max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
         }
     }
 }
@@ -124,6 +136,9 @@ pub struct Settings {
     pub log_format: LogFormat,
     /// Time in-flight requests get to finish after a shutdown signal.
     pub shutdown_grace: Duration,
+    /// Largest declared width × height of an uploaded image, pixels. The largest encoded
+    /// image is the body limit.
+    pub max_image_pixels: u64,
 }
 
 impl Default for Settings {
@@ -138,6 +153,7 @@ impl Default for Settings {
             queue_length: DEFAULT_QUEUE_LENGTH,
             log_format: LogFormat::Text,
             shutdown_grace: Duration::from_millis(DEFAULT_SHUTDOWN_GRACE_MS),
+            max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
         }
     }
 }
@@ -210,6 +226,12 @@ impl TryFrom<ServeArgs> for Settings {
                 0,
                 MAX_SHUTDOWN_GRACE_MS,
             )?),
+            max_image_pixels: in_range(
+                "max-image-pixels",
+                args.max_image_pixels,
+                1,
+                MAX_MAX_IMAGE_PIXELS,
+            )?,
         })
     }
 }
@@ -258,6 +280,8 @@ mod tests {
             "json",
             "--shutdown-grace-ms",
             "0",
+            "--max-image-pixels",
+            "1000000",
         ])
         .expect("valid flags");
         assert_eq!(s.addr, SocketAddr::from(([0, 0, 0, 0], 9000)));
@@ -268,11 +292,12 @@ mod tests {
         assert_eq!(s.queue_length, 0);
         assert_eq!(s.log_format, LogFormat::Json);
         assert_eq!(s.shutdown_grace, Duration::ZERO);
+        assert_eq!(s.max_image_pixels, 1_000_000);
     }
 
     #[test]
     fn rejects_values_outside_their_range_naming_the_flag() {
-        let cases: [(&[&str], &str); 7] = [
+        let cases: [(&[&str], &str); 9] = [
             (&["--body-limit-bytes", "10"], "body-limit-bytes"),
             (&["--request-timeout-ms", "0"], "request-timeout-ms"),
             (&["--worker-threads", "0"], "worker-threads"),
@@ -283,6 +308,8 @@ mod tests {
             ),
             (&["--queue-length", "1000000"], "queue-length"),
             (&["--shutdown-grace-ms", "700000"], "shutdown-grace-ms"),
+            (&["--max-image-pixels", "0"], "max-image-pixels"),
+            (&["--max-image-pixels", "2000000000"], "max-image-pixels"),
         ];
         for (flags, flag) in cases {
             let err = settings_from(flags).expect_err(flag);

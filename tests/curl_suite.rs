@@ -1,5 +1,6 @@
-//! The curl suite (`tests/curl/*.sh`, the README's examples) against the real binary, and
-//! the binary's shutdown on SIGTERM and SIGINT.
+//! The curl suite (`tests/curl/*.sh`, the README's examples) against the real binary, with
+//! a photo the binary renders itself for `image.sh`, and the binary's shutdown on SIGTERM
+//! and SIGINT.
 //!
 //! Needs `bash` and `curl` on the PATH (CI's image has both).
 
@@ -112,16 +113,52 @@ fn scripts() -> Vec<PathBuf> {
     scripts
 }
 
+/// Renders the photo that `tests/curl/image.sh` sends, with the binary's own `render`: a
+/// 1280x720 JPEG of a 50 mm code 400 mm away (f = 1000 px), tilted, blurred and noisy.
+fn render_photo() -> PathBuf {
+    let photo = Path::new(env!("CARGO_TARGET_TMPDIR")).join("curl-suite-photo.jpg");
+    let output = Command::new(env!("CARGO_BIN_EXE_qrpose"))
+        .arg("render")
+        .arg("--out")
+        .arg(&photo)
+        .args([
+            "--payload",
+            "SKU-1",
+            "--marker-size-mm",
+            "50",
+            "--x-mm",
+            "20",
+            "--z-mm",
+            "400",
+            "--alpha-deg",
+            "20",
+            "--beta-deg",
+            "-10",
+            "--blur-px",
+            "0.8",
+            "--noise",
+            "2",
+            "--seed",
+            "3",
+        ])
+        .output()
+        .expect("qrpose render runs");
+    assert!(output.status.success(), "qrpose render: {output:?}");
+    photo
+}
+
 #[test]
 fn every_curl_script_passes_against_the_real_binary() {
     let mut server = Server::start("scripts");
     let scripts = scripts();
-    assert!(scripts.len() >= 3, "scripts: {scripts:?}");
+    assert!(scripts.len() >= 4, "scripts: {scripts:?}");
+    let photo = render_photo();
 
     for script in &scripts {
         let output = Command::new("bash")
             .arg(script)
             .env("BASE_URL", &server.base_url)
+            .env("IMAGE_PATH", &photo)
             .output()
             .expect("bash runs");
         assert!(

@@ -197,6 +197,51 @@ impl ImageQuery {
     }
 }
 
+/// Each query parameter and the JSON pointer of the same value in [`ImageRequest`].
+const QUERY_PARAMETERS: [(&str, &str); 21] = [
+    ("fx_px", "/camera/fx_px"),
+    ("fy_px", "/camera/fy_px"),
+    ("cx_px", "/camera/cx_px"),
+    ("cy_px", "/camera/cy_px"),
+    ("focal_length_mm", "/camera/focal_length_mm"),
+    ("pixel_size_um", "/camera/pixel_size_um"),
+    ("k1", "/camera/distortion/k1"),
+    ("k2", "/camera/distortion/k2"),
+    ("k3", "/camera/distortion/k3"),
+    ("p1", "/camera/distortion/p1"),
+    ("p2", "/camera/distortion/p2"),
+    ("marker_size_mm", "/marker/size_mm"),
+    ("method", "/solver/method"),
+    ("detector", "/detector"),
+    ("points", "/points"),
+    ("initial_z_mm", "/solver/initial_z_mm"),
+    ("gain", "/solver/gain"),
+    ("tolerance_mm", "/solver/tolerance_mm"),
+    ("max_iterations", "/solver/max_iterations"),
+    ("trace", "/solver/trace"),
+    ("corner_sigma_px", "/solver/corner_sigma_px"),
+];
+
+impl ImageQuery {
+    /// `problem` with its `field` turned from a JSON pointer into the [`ImageRequest`] these
+    /// parameters became (`/camera/fx_px`, `/marker/size_mm`) into the query parameter a
+    /// client sent (`fx_px`, `marker_size_mm`). A pointer that no single parameter stands
+    /// for (`/camera`: the camera's form as a whole) leaves no `field`; a field that is
+    /// already a parameter name is kept.
+    pub fn problem_in_query_terms(problem: Problem) -> Problem {
+        let field = problem.field.as_deref().and_then(|field| {
+            if !field.starts_with('/') {
+                return Some(field.to_owned());
+            }
+            QUERY_PARAMETERS
+                .iter()
+                .find(|(_, pointer)| *pointer == field)
+                .map(|(parameter, _)| (*parameter).to_owned())
+        });
+        Problem { field, ..problem }
+    }
+}
+
 /// The image's size.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 pub struct ImageSizeDto {
@@ -462,4 +507,68 @@ pub fn estimate_image(
             estimate: ms_since(t_estimate),
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_query_parameter_has_its_pointer_and_every_pointer_its_parameter() {
+        let all = ImageQuery {
+            fx_px: Some(1.0),
+            fy_px: Some(1.0),
+            cx_px: Some(1.0),
+            cy_px: Some(1.0),
+            focal_length_mm: Some(1.0),
+            pixel_size_um: Some(1.0),
+            k1: Some(0.5),
+            k2: Some(0.5),
+            k3: Some(0.5),
+            p1: Some(0.5),
+            p2: Some(0.5),
+            marker_size_mm: Some(1.0),
+            method: Some(MethodDto::Paper),
+            detector: Some(DetectorDto::Rqrr),
+            points: Some(PointsDto::Corners),
+            initial_z_mm: Some(1.0),
+            gain: Some(1.0),
+            tolerance_mm: Some(1.0),
+            max_iterations: Some(1),
+            trace: Some(true),
+            corner_sigma_px: Some(1.0),
+        };
+        let names = serde_json::to_value(&all).expect("serialisable");
+        let names: Vec<&String> = names.as_object().expect("an object").keys().collect();
+        assert_eq!(names.len(), QUERY_PARAMETERS.len());
+        let request =
+            serde_json::to_value(all.into_request().expect("complete")).expect("serialisable");
+        for (parameter, pointer) in QUERY_PARAMETERS {
+            assert!(names.iter().any(|n| *n == parameter), "{parameter}");
+            assert!(
+                request.pointer(pointer).is_some_and(|v| !v.is_null()),
+                "{parameter}: {pointer} is not in {request}"
+            );
+        }
+    }
+
+    #[test]
+    fn problems_name_the_query_parameter() {
+        let cases = [
+            (Some("/camera/fx_px"), Some("fx_px")),
+            (Some("/camera/distortion/k1"), Some("k1")),
+            (Some("/marker/size_mm"), Some("marker_size_mm")),
+            (Some("/solver/max_iterations"), Some("max_iterations")),
+            (Some("/detector"), Some("detector")),
+            (Some("marker_size_mm"), Some("marker_size_mm")),
+            (Some("/camera"), None),
+            (None, None),
+        ];
+        for (field, expected) in cases {
+            let mut problem = Problem::new(ErrorCode::IncompleteCamera, "x");
+            problem.field = field.map(str::to_owned);
+            let renamed = ImageQuery::problem_in_query_terms(problem);
+            assert_eq!(renamed.field.as_deref(), expected, "{field:?}");
+        }
+    }
 }

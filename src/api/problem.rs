@@ -2,7 +2,8 @@
 //!
 //! Every error has a stable snake_case [`ErrorCode`] that clients can switch on, the HTTP
 //! status it maps to, and, where one field is at fault, `field` as a JSON pointer into the
-//! request (`/corners_px/2`, `/camera/fx_px`) or the name of a query parameter.
+//! request (`/corners_px/2`, `/camera/fx_px`), the name of a query parameter or the name of a
+//! multipart part.
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -16,6 +17,9 @@ pub enum ErrorCode {
     MalformedJson,
     /// 400: a query parameter cannot be parsed.
     MalformedQuery,
+    /// 400: a `multipart/form-data` body cannot be parsed (no boundary, broken framing, a
+    /// part without a name or a part given twice).
+    MalformedMultipart,
     /// 422: a required field is missing.
     MissingField,
     /// 422: a field the API does not know (a typo would otherwise be silently ignored).
@@ -84,7 +88,7 @@ impl ErrorCode {
     pub fn status(self) -> u16 {
         use ErrorCode::*;
         match self {
-            MalformedJson | MalformedQuery => 400,
+            MalformedJson | MalformedQuery | MalformedMultipart => 400,
             NotFound => 404,
             MethodNotAllowed => 405,
             ImageTooLarge | PayloadTooLarge => 413,
@@ -101,6 +105,7 @@ impl ErrorCode {
         match self {
             MalformedJson => "Malformed JSON",
             MalformedQuery => "Malformed query string",
+            MalformedMultipart => "Malformed multipart body",
             MissingField => "Missing field",
             UnknownField => "Unknown field",
             InvalidType => "Invalid field type",
@@ -165,7 +170,8 @@ pub struct Problem {
     pub detail: String,
     /// Stable machine-readable code.
     pub code: ErrorCode,
-    /// The field at fault: a JSON pointer into the request body, or a query parameter name.
+    /// The field at fault: a JSON pointer into the request body (for a multipart body, into
+    /// its `request` part), a query parameter name, or a multipart part name.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub field: Option<String>,
 }

@@ -9,11 +9,12 @@
 
 use super::error::ApiError;
 use super::state::AppState;
-use crate::api::problem::ErrorCode;
+use crate::api::problem::{ErrorCode, Problem};
 use axum::body::{Body, Bytes, HttpBody};
 use axum::extract::{FromRequest, Request};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
+use serde::de::DeserializeOwned;
 use std::pin::Pin;
 
 /// The media type `POST` bodies of the JSON endpoints must declare.
@@ -109,15 +110,44 @@ async fn drain(mut body: Body, mut budget: usize) {
 /// # Errors
 /// [`BodyError::TooLarge`] over the limit, [`BodyError::Unreadable`] on a transport error.
 pub async fn read_body(request: Request, limit_bytes: usize) -> Result<Bytes, BodyError> {
+    let (parts, body) = request.into_parts();
+    read_limited(&parts.headers, body, limit_bytes).await
+}
+
+/// `request` with its body read into memory (at most `limit_bytes`, as [`read_body`]), for
+/// extractors that parse a body of their own (axum's `Multipart`) and should meet the same
+/// limit and the same drained 413 as every other body. Headers and extensions are kept.
+///
+/// # Errors
+/// As [`read_body`].
+pub async fn buffer_body(request: Request, limit_bytes: usize) -> Result<Request, BodyError> {
+    let (parts, body) = request.into_parts();
+    let bytes = read_limited(&parts.headers, body, limit_bytes).await?;
+    Ok(Request::from_parts(parts, Body::from(bytes)))
+}
+
+/// Reads and discards the body of a request that is refused without it (415), at most
+/// `limit_bytes` and never with `Expect: 100-continue`, so that a client still sending a
+/// large body reads the answer instead of a connection reset.
+pub async fn discard_body(request: Request, limit_bytes: usize) {
+    if !expects_continue(request.headers()) {
+        drain(request.into_body(), limit_bytes.min(DRAIN_LIMIT_BYTES)).await;
+    }
+}
+
+async fn read_limited(
+    headers: &HeaderMap,
+    mut body: Body,
+    limit_bytes: usize,
+) -> Result<Bytes, BodyError> {
     let too_large = BodyError::TooLarge { limit_bytes };
-    let declared = declared_length(request.headers());
+    let declared = declared_length(headers);
     if declared.is_some_and(|n| n > limit_bytes) {
-        if !expects_continue(request.headers()) {
-            drain(request.into_body(), DRAIN_LIMIT_BYTES).await;
+        if !expects_continue(headers) {
+            drain(body, DRAIN_LIMIT_BYTES).await;
         }
         return Err(too_large);
     }
-    let mut body = request.into_body();
     // A declared length is only a claim: reserve at most a small amount up front.
     let mut buf = Vec::with_capacity(declared.unwrap_or(0).min(INITIAL_CAPACITY_BYTES));
     while let Some(frame) = next_data(&mut body).await {
@@ -133,6 +163,47 @@ pub async fn read_body(request: Request, limit_bytes: usize) -> Result<Bytes, Bo
         buf.extend_from_slice(&data);
     }
     Ok(Bytes::from(buf))
+}
+
+/// Parses a query string (without the `?`; `None` is an empty one) into `T`.
+///
+/// # Errors
+/// 422 `unknown_field` for a parameter `T` does not have and `unknown_variant` for a value
+/// outside an enumerated set (the codes of the same mistakes in a JSON body); 400
+/// `malformed_query` for a value that does not parse as its type, a parameter given twice or
+/// broken percent-encoding. `field` names the parameter.
+pub fn parse_query<T: DeserializeOwned>(query: Option<&str>) -> Result<T, ApiError> {
+    let parser = form_urlencoded::parse(query.unwrap_or_default().as_bytes());
+    let deserializer = serde_urlencoded::Deserializer::new(parser);
+    serde_path_to_error::deserialize(deserializer).map_err(|e| {
+        let message = e.inner().to_string();
+        let code = if message.starts_with("unknown field") {
+            ErrorCode::UnknownField
+        } else if message.starts_with("unknown variant") {
+            ErrorCode::UnknownVariant
+        } else {
+            ErrorCode::MalformedQuery
+        };
+        // The path is the parameter whose value failed; for an unknown or duplicate
+        // parameter serde names it in the message instead.
+        let path = e.path().to_string();
+        let field = if path.is_empty() || path == "." {
+            message.split('`').nth(1).map(str::to_owned)
+        } else {
+            Some(path)
+        };
+        let detail = match &field {
+            Some(name) if !message.contains(name.as_str()) => {
+                format!("query parameter {name}: {message}")
+            }
+            _ => message,
+        };
+        let problem = Problem::new(code, detail);
+        ApiError::from(match field {
+            Some(name) => problem.with_field(name),
+            None => problem,
+        })
+    })
 }
 
 /// A JSON body serialised elsewhere (on an estimation worker), sent as `application/json`.
@@ -226,5 +297,67 @@ mod tests {
                 "{declared:?}"
             );
         }
+    }
+
+    #[tokio::test]
+    async fn a_buffered_request_keeps_its_headers_and_meets_the_same_limit() {
+        let mut original = request(b"0123456789", Some(10));
+        original.headers_mut().insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("text/x-test"),
+        );
+        let buffered = buffer_body(original, 10).await.expect("within the limit");
+        assert_eq!(buffered.headers()[header::CONTENT_TYPE], "text/x-test");
+        let body = read_body(buffered, 10).await;
+        assert_eq!(body, Ok(Bytes::from_static(b"0123456789")));
+        let err = buffer_body(request(b"0123456789x", None), 10).await;
+        assert_eq!(
+            err.map(|_| ()),
+            Err(BodyError::TooLarge { limit_bytes: 10 })
+        );
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    #[allow(dead_code)]
+    struct Query {
+        size_mm: Option<f64>,
+        count: Option<u32>,
+        mode: Option<Mode>,
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[serde(rename_all = "lowercase")]
+    enum Mode {
+        Fast,
+    }
+
+    #[test]
+    fn query_errors_name_their_parameter() {
+        let cases = [
+            ("size_mm=wide", ErrorCode::MalformedQuery, Some("size_mm")),
+            ("size_mm=", ErrorCode::MalformedQuery, Some("size_mm")),
+            ("count=-1", ErrorCode::MalformedQuery, Some("count")),
+            ("count=1&count=2", ErrorCode::MalformedQuery, Some("count")),
+            ("size=5", ErrorCode::UnknownField, Some("size")),
+            ("mode=slow", ErrorCode::UnknownVariant, Some("mode")),
+        ];
+        for (query, code, field) in cases {
+            let err = parse_query::<Query>(Some(query)).expect_err(query);
+            let problem = err.problem();
+            assert_eq!(
+                (problem.code, problem.field.as_deref()),
+                (code, field),
+                "{query}: {problem:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn queries_parse_with_percent_encoding_and_without_a_query() {
+        let q: Query = parse_query(Some("size_mm=%35%30&mode=fast")).expect("valid");
+        assert_eq!(q.size_mm, Some(50.0));
+        let q: Query = parse_query(None).expect("no query is an empty one");
+        assert!(q.size_mm.is_none() && q.count.is_none() && q.mode.is_none());
     }
 }

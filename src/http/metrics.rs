@@ -9,10 +9,11 @@
 //! | `estimation_queue_depth` | gauge | | requests waiting for an estimation worker |
 //! | `estimations_running` | gauge | | estimations running now |
 //! | `estimation_rejections_total` | counter | | requests refused with 503 `overloaded` |
+//! | `image_codes_detected` | histogram | | QR codes found per image answered 200 |
 //!
 //! `route` is the route template (`/v1/pose/corners`), or `unmatched` for unknown paths, so
-//! that scanning clients cannot create unbounded label values. A new per-endpoint metric (the
-//! image route's codes detected per image) is one field here, registered in [`Metrics::new`].
+//! that scanning clients cannot create unbounded label values. A new per-endpoint metric is
+//! one field here, registered in [`Metrics::new`].
 
 use axum::http::{Method, StatusCode};
 use prometheus_client::encoding::EncodeLabelSet;
@@ -36,6 +37,10 @@ pub const UNMATCHED_ROUTE: &str = "unmatched";
 const ITERATION_BUCKETS: [f64; 13] = [
     1.0, 2.0, 3.0, 5.0, 8.0, 13.0, 20.0, 30.0, 50.0, 100.0, 300.0, 1000.0, 10000.0,
 ];
+
+/// Upper bounds of the codes-per-image histogram: 0 (nothing found, still a 200) to 8, then
+/// `+Inf`.
+const CODES_BUCKETS: [f64; 9] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0];
 
 /// Latency buckets: 50 µs doubling to about 3.3 s.
 fn latency_buckets() -> impl Iterator<Item = f64> {
@@ -88,6 +93,7 @@ pub struct Metrics {
     latency: HistogramFamily<RouteLabels>,
     iterations: HistogramFamily<MethodLabels>,
     not_converged: Family<MethodLabels, Counter>,
+    codes_detected: Histogram,
     queue: QueueMetrics,
 }
 
@@ -107,6 +113,7 @@ impl Metrics {
         let iterations: HistogramFamily<MethodLabels> =
             Family::new_with_constructor(|| Histogram::new(ITERATION_BUCKETS));
         let not_converged = Family::<MethodLabels, Counter>::default();
+        let codes_detected = Histogram::new(CODES_BUCKETS);
         let queue = QueueMetrics::default();
         registry.register(
             "http_requests",
@@ -130,6 +137,11 @@ impl Metrics {
             not_converged.clone(),
         );
         registry.register(
+            "image_codes_detected",
+            "QR codes found per image (POST /v1/pose/image answered 200)",
+            codes_detected.clone(),
+        );
+        registry.register(
             "estimation_queue_depth",
             "Requests waiting for an estimation worker",
             queue.waiting.clone(),
@@ -150,6 +162,7 @@ impl Metrics {
             latency,
             iterations,
             not_converged,
+            codes_detected,
             queue,
         }
     }
@@ -194,6 +207,13 @@ impl Metrics {
         }
     }
 
+    /// Records the number of QR codes found in one image.
+    pub fn observe_codes_detected(&self, codes: usize) {
+        // Exact up to 2^53 codes; an image holds a handful.
+        #[allow(clippy::cast_precision_loss)]
+        self.codes_detected.observe(codes as f64);
+    }
+
     /// The OpenMetrics text exposition.
     ///
     /// # Errors
@@ -221,6 +241,9 @@ mod tests {
         metrics.observe_estimate("paper", 30, false);
         metrics.observe_estimate("reprojection", 4, true);
         metrics.queue().rejected.inc();
+        metrics.observe_codes_detected(0);
+        metrics.observe_codes_detected(2);
+        metrics.observe_codes_detected(20);
         let text = metrics.encode().expect("encodes");
         for line in [
             r#"qrpose_http_requests_total{route="/v1/pose/corners",method="POST",status="200"} 1"#,
@@ -230,6 +253,12 @@ mod tests {
             "qrpose_estimation_queue_depth 0",
             "qrpose_estimations_running 0",
             "qrpose_estimation_rejections_total 1",
+            r#"qrpose_image_codes_detected_bucket{le="0.0"} 1"#,
+            r#"qrpose_image_codes_detected_bucket{le="1.0"} 1"#,
+            r#"qrpose_image_codes_detected_bucket{le="2.0"} 2"#,
+            r#"qrpose_image_codes_detected_bucket{le="8.0"} 2"#,
+            r#"qrpose_image_codes_detected_bucket{le="+Inf"} 3"#,
+            "qrpose_image_codes_detected_sum 22.0",
             "# EOF",
         ] {
             assert!(text.contains(line), "missing `{line}` in\n{text}");

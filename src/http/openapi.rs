@@ -4,7 +4,7 @@
 //! `openapi/openapi.json` in the repository is [`openapi_json`]'s output, written only by
 //! `cargo run -- openapi > openapi/openapi.json`; a test fails when the two drift.
 
-use super::routes::{corners, docs, health, metrics};
+use super::routes::{corners, docs, health, image, metrics};
 use super::state::AppState;
 use utoipa::OpenApi;
 use utoipa_axum::{router::OpenApiRouter, routes};
@@ -40,6 +40,7 @@ pub struct ApiDoc;
 pub fn api_router() -> OpenApiRouter<AppState> {
     OpenApiRouter::with_openapi(ApiDoc::openapi())
         .routes(routes!(corners::pose_from_corners))
+        .routes(routes!(image::pose_from_image))
         .routes(routes!(health::healthz))
         .routes(routes!(health::readyz))
         .routes(routes!(metrics::metrics))
@@ -48,7 +49,9 @@ pub fn api_router() -> OpenApiRouter<AppState> {
 
 /// The OpenAPI document.
 pub fn openapi() -> utoipa::openapi::OpenApi {
-    api_router().into_openapi()
+    let mut doc = api_router().into_openapi();
+    image::document_part_media_types(&mut doc);
+    doc
 }
 
 /// The OpenAPI document as pretty JSON with a final newline: what `qrpose openapi` prints,

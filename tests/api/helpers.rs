@@ -2,7 +2,9 @@
 
 use qrpose::api::problem::{ErrorCode, Problem};
 use qrpose::config::{LogFormat, Settings};
+use qrpose::geometry::{camera::Camera, euler::EulerXyz, frames::MarkerToCamera, marker::Marker};
 use qrpose::http::{self, AppState};
+use qrpose::render::{EcLevel, Effects, Encoding, Rendered, Scene, render};
 use reqwest::{Response, StatusCode, header};
 use serde_json::{Value, json};
 use std::future::Future;
@@ -105,6 +107,35 @@ impl TestApp {
             request = request.header(header::CONTENT_TYPE, content_type);
         }
         request.send().await.expect("the server answers")
+    }
+
+    /// `POST /v1/pose/image?QUERY` with a raw body and an optional content type (`query`
+    /// without the `?`; empty for none).
+    pub async fn post_image(
+        &self,
+        query: &str,
+        body: Vec<u8>,
+        content_type: Option<&str>,
+    ) -> Response {
+        let mut url = format!("{}/v1/pose/image", self.address);
+        if !query.is_empty() {
+            url = format!("{url}?{query}");
+        }
+        let mut request = self.client.post(url).body(body);
+        if let Some(content_type) = content_type {
+            request = request.header(header::CONTENT_TYPE, content_type);
+        }
+        request.send().await.expect("the server answers")
+    }
+
+    /// `POST /v1/pose/image` with a multipart body built by [`multipart_body`].
+    pub async fn post_image_multipart(&self, body: Vec<u8>) -> Response {
+        self.post_image(
+            "",
+            body,
+            Some(&format!("multipart/form-data; boundary={BOUNDARY}")),
+        )
+        .await
     }
 
     /// Sends the valid corners request from a task of its own, for a test that must act
@@ -254,4 +285,105 @@ pub fn one_worker(queue_length: usize) -> Settings {
         queue_length,
         ..Settings::default()
     }
+}
+
+/// The boundary of the multipart bodies of [`multipart_body`].
+pub const BOUNDARY: &str = "qrpose-test-boundary-7MA4YWxkTrZu0gW";
+
+/// One part of a multipart body: its name (`None`: no name), content type and bytes.
+pub struct Part<'a> {
+    pub name: Option<&'a str>,
+    pub content_type: &'a str,
+    pub bytes: &'a [u8],
+}
+
+/// The `image` part with these bytes.
+pub fn image_part(bytes: &[u8]) -> Part<'_> {
+    Part {
+        name: Some("image"),
+        content_type: "image/jpeg",
+        bytes,
+    }
+}
+
+/// The `request` part with this JSON.
+pub fn request_part(json: &[u8]) -> Part<'_> {
+    Part {
+        name: Some("request"),
+        content_type: "application/json",
+        bytes: json,
+    }
+}
+
+/// A `multipart/form-data` body with [`BOUNDARY`], written by hand so that tests can also
+/// send what no well-behaved client library would (a part without a name, a part twice).
+pub fn multipart_body(parts: &[Part<'_>]) -> Vec<u8> {
+    let mut body = Vec::new();
+    for part in parts {
+        body.extend_from_slice(format!("--{BOUNDARY}\r\n").as_bytes());
+        match part.name {
+            Some(name) => body.extend_from_slice(
+                format!("Content-Disposition: form-data; name=\"{name}\"\r\n").as_bytes(),
+            ),
+            None => body.extend_from_slice(b"Content-Disposition: form-data\r\n"),
+        }
+        body.extend_from_slice(format!("Content-Type: {}\r\n\r\n", part.content_type).as_bytes());
+        body.extend_from_slice(part.bytes);
+        body.extend_from_slice(b"\r\n");
+    }
+    body.extend_from_slice(format!("--{BOUNDARY}--\r\n").as_bytes());
+    body
+}
+
+/// The payload of the test photos.
+pub const PHOTO_PAYLOAD: &str = "SKU-1";
+
+/// The camera and marker of the test photos as query parameters: 1280x720, f = 1000 px,
+/// principal point at the centre, a 50 mm code.
+pub const PHOTO_QUERY: &str = "fx_px=1000&fy_px=1000&cx_px=639.5&cy_px=359.5&marker_size_mm=50";
+
+/// The same camera and marker as the JSON `request` part.
+pub fn photo_request() -> Value {
+    json!({
+        "camera": {"fx_px": 1000.0, "fy_px": 1000.0, "cx_px": 639.5, "cy_px": 359.5},
+        "marker": {"size_mm": 50.0}
+    })
+}
+
+/// A 1280x720 photo of a 50 mm code 400 mm away, tilted, with blur, noise, uneven lighting
+/// and clutter, rendered by the library with its ground truth; centred at `centre_mm` in the
+/// camera frame.
+pub fn render_photo(encoding: Encoding, centre_mm: [f64; 3]) -> Rendered {
+    let marker = Marker::try_new(50.0).expect("a valid size");
+    let r = EulerXyz::from_degrees(10.0, -15.0, 5.0).to_rotation();
+    let centre = nalgebra::Vector3::new(centre_mm[0], centre_mm[1], centre_mm[2]);
+    let scene = Scene {
+        payload: PHOTO_PAYLOAD.as_bytes().to_vec(),
+        ec_level: EcLevel::M,
+        marker,
+        camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("a valid camera"),
+        width_px: 1280,
+        height_px: 720,
+        pose: MarkerToCamera::new(r, centre - r * marker.centre().0.coords),
+    };
+    let effects = Effects {
+        supersample: 2,
+        blur_px: 0.8,
+        noise: 2.0,
+        lighting: 0.2,
+        clutter: 10,
+        encoding,
+        seed: 7,
+        ..Effects::default()
+    };
+    render(&scene, &effects).expect("renders")
+}
+
+/// The JPEG test photo (rendered once per test binary).
+pub static PHOTO: LazyLock<Rendered> =
+    LazyLock::new(|| render_photo(Encoding::Jpeg(90), [20.0, -10.0, 400.0]));
+
+/// The JPEG test photo's bytes.
+pub fn photo_jpeg() -> Vec<u8> {
+    PHOTO.encoded.clone()
 }

@@ -9,6 +9,8 @@ mod corners_bad_inputs;
 mod docs;
 mod health;
 mod healthcheck;
+mod image;
+mod image_bad_inputs;
 mod metrics;
 mod openapi;
 mod routing;

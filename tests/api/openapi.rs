@@ -60,6 +60,7 @@ fn the_document_is_openapi_3_1_and_lists_every_route() {
     assert_eq!(doc["openapi"], "3.1.0");
     for (path, method) in [
         ("/v1/pose/corners", "post"),
+        ("/v1/pose/image", "post"),
         ("/healthz", "get"),
         ("/readyz", "get"),
         ("/metrics", "get"),
@@ -88,6 +89,46 @@ fn every_error_response_is_a_problem_document() {
             }
         }
     }
+}
+
+#[test]
+fn the_image_operation_documents_both_forms_and_every_parameter() {
+    let doc = document();
+    let image = &doc["paths"]["/v1/pose/image"]["post"];
+    let content = &image["requestBody"]["content"];
+    for media_type in ["image/jpeg", "image/png", "multipart/form-data"] {
+        assert!(content[media_type].is_object(), "{media_type}");
+    }
+    let form = &content["multipart/form-data"];
+    assert_eq!(
+        form["schema"]["required"],
+        serde_json::json!(["image", "request"])
+    );
+    assert_eq!(
+        form["encoding"]["request"]["contentType"],
+        "application/json"
+    );
+    let parameters: Vec<&str> = image["parameters"]
+        .as_array()
+        .expect("parameters")
+        .iter()
+        .map(|p| {
+            assert_eq!(p["in"], "query");
+            assert!(p["description"].is_string(), "{p}");
+            p["name"].as_str().expect("a name")
+        })
+        .collect();
+    for name in ["fx_px", "marker_size_mm", "method", "detector", "points"] {
+        assert!(parameters.contains(&name), "{name} in {parameters:?}");
+    }
+    for status in ["400", "413", "415", "422", "500", "503"] {
+        let schema = &image["responses"][status]["content"]["application/problem+json"]["schema"];
+        assert_eq!(schema["$ref"], "#/components/schemas/Problem", "{status}");
+    }
+    assert_eq!(
+        image["responses"]["200"]["content"]["application/json"]["schema"]["$ref"],
+        "#/components/schemas/ImageResponse"
+    );
 }
 
 #[test]

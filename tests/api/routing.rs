@@ -32,6 +32,7 @@ async fn known_routes_with_another_method_get_405_with_allow() {
     let cases = [
         (Method::GET, "/v1/pose/corners", "POST"),
         (Method::PUT, "/v1/pose/corners", "POST"),
+        (Method::GET, "/v1/pose/image", "POST"),
         (Method::DELETE, "/healthz", "GET,HEAD"),
         (Method::POST, "/metrics", "GET,HEAD"),
         (Method::POST, "/openapi.json", "GET,HEAD"),

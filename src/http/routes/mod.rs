@@ -3,4 +3,5 @@
 pub mod corners;
 pub mod docs;
 pub mod health;
+pub mod image;
 pub mod metrics;

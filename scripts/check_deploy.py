@@ -1,0 +1,180 @@
+#!/usr/bin/env python3
+"""Checks the deployment files without a Docker engine or a cluster (issue 6).
+
+Parses docker/compose.yaml and docker/k8s/*.yaml and checks that they name what the
+deployment relies on: the services and their health checks, the environment-only
+configuration, resource limits, the load balancer and its config, the probes, the non-root
+security context, the Service and the autoscaler; and that the Dockerfile keeps the
+properties hadolint does not know about (non-root user, port, health check, entrypoint).
+
+Usage: python3 scripts/check_deploy.py   (needs PyYAML). Exit 0 when every check holds, 1
+otherwise, with one line per failed check.
+"""
+
+import re
+import sys
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCKER = ROOT / "docker"
+PORT = 8080
+HEALTHCHECK = ["CMD", "/usr/local/bin/qrpose", "healthcheck"]
+
+failures = []
+
+
+def check(condition, message):
+    if not condition:
+        failures.append(message)
+    return condition
+
+
+def load_all(path):
+    with path.open(encoding="utf-8") as f:
+        return [doc for doc in yaml.safe_load_all(f) if doc is not None]
+
+
+def check_dockerfile():
+    text = (DOCKER / "Dockerfile").read_text(encoding="utf-8")
+    stages = re.findall(r"^FROM\s+(\S+)(?:\s+AS\s+(\S+))?", text, re.M | re.I)
+    check(len(stages) >= 2, "Dockerfile: not a multi-stage build")
+    check("--locked" in text and "--features zxing-cpp" in text,
+          "Dockerfile: the release build must use --locked and --features zxing-cpp")
+    check("cargo chef cook" in text, "Dockerfile: no separate dependency layer (cargo chef cook)")
+    users = re.findall(r"^USER\s+(\S+)", text, re.M)
+    check(users and users[-1].split(":")[0] not in ("0", "root"),
+          "Dockerfile: the runtime stage must run as a non-root user")
+    check(re.search(r"^ENV\s+QRPOSE_ADDR=0\.0\.0\.0:8080\b", text, re.M),
+          "Dockerfile: ENV QRPOSE_ADDR=0.0.0.0:8080 missing")
+    check(re.search(rf"^EXPOSE\s+{PORT}\b", text, re.M), f"Dockerfile: EXPOSE {PORT} missing")
+    check(re.search(r'^HEALTHCHECK\b.*\n?.*CMD \["/usr/local/bin/qrpose", "healthcheck"\]',
+                    text, re.M),
+          "Dockerfile: HEALTHCHECK must run `qrpose healthcheck`")
+    check(re.search(r"^STOPSIGNAL\s+SIGTERM\b", text, re.M), "Dockerfile: STOPSIGNAL SIGTERM missing")
+    check(re.search(r'^ENTRYPOINT \["/usr/local/bin/qrpose"\]', text, re.M),
+          "Dockerfile: exec-form ENTRYPOINT (the binary as PID 1, receiving SIGTERM) missing")
+    ignore = (ROOT / ".dockerignore").read_text(encoding="utf-8").split()
+    check("/target" in ignore and "/.git" in ignore, ".dockerignore: target/ and .git must be ignored")
+
+
+def check_compose():
+    (compose,) = load_all(DOCKER / "compose.yaml")
+    services = compose.get("services", {})
+    for name in ("qrpose", "replica", "lb"):
+        check(name in services, f"compose: service `{name}` missing")
+    for name in ("qrpose", "replica"):
+        service = services.get(name, {})
+        check(service.get("healthcheck", {}).get("test") == HEALTHCHECK,
+              f"compose: `{name}` healthcheck must be {HEALTHCHECK}")
+        env = service.get("environment", {})
+        check(isinstance(env, dict) and env.get("QRPOSE_ADDR") == f"0.0.0.0:{PORT}",
+              f"compose: `{name}` must be configured by environment (QRPOSE_ADDR)")
+        check(all(k.startswith(("QRPOSE_", "RUST_LOG")) for k in env),
+              f"compose: `{name}` has environment variables qrpose does not read")
+        limits = service.get("deploy", {}).get("resources", {}).get("limits", {})
+        check("cpus" in limits and "memory" in limits, f"compose: `{name}` needs CPU and memory limits")
+        check(service.get("build", {}).get("dockerfile") == "docker/Dockerfile",
+              f"compose: `{name}` must build docker/Dockerfile")
+    check(any(p.endswith(f":{PORT}") for p in services.get("qrpose", {}).get("ports", [])),
+          f"compose: `qrpose` must publish port {PORT}")
+    check(services.get("replica", {}).get("deploy", {}).get("replicas", 0) >= 2,
+          "compose: `replica` needs two or more replicas")
+    check("ports" not in services.get("replica", {}), "compose: replicas must not publish ports")
+    lb = services.get("lb", {})
+    check(str(lb.get("image", "")).startswith(("nginx:", "traefik:")) and not str(
+        lb.get("image", "")).endswith(":latest"),
+        "compose: `lb` must be an official nginx or Traefik image pinned by tag")
+    check("replica" in lb.get("depends_on", {}), "compose: `lb` must depend on `replica`")
+    mounts = [v.split(":")[0] for v in lb.get("volumes", [])]
+    check("./nginx.conf" in mounts, "compose: `lb` must mount ./nginx.conf")
+    nginx = (DOCKER / "nginx.conf").read_text(encoding="utf-8")
+    check(re.search(rf"server\s+replica:{PORT}\b", nginx), "nginx.conf: upstream `replica` missing")
+    check(re.search(r"client_max_body_size\s+24m;", nginx),
+          "nginx.conf: client_max_body_size must let a 24 MiB photo through")
+    check(re.search(r"proxy_pass\s+http://qrpose;", nginx), "nginx.conf: proxy_pass to the upstream missing")
+
+
+def probe(container, kind):
+    return container.get(kind, {}).get("httpGet", {})
+
+
+def check_kubernetes():
+    docs = []
+    for path in sorted((DOCKER / "k8s").glob("*.yaml")):
+        docs.extend(load_all(path))
+    by_kind = {doc.get("kind"): doc for doc in docs}
+    for kind in ("Deployment", "Service", "HorizontalPodAutoscaler"):
+        check(kind in by_kind, f"k8s: no {kind}")
+    deployment = by_kind.get("Deployment", {})
+    template = deployment.get("spec", {}).get("template", {})
+    labels = template.get("metadata", {}).get("labels", {})
+    selector = deployment.get("spec", {}).get("selector", {}).get("matchLabels", {})
+    check(selector and selector.items() <= labels.items(),
+          "k8s: the Deployment's selector must match its pod labels")
+    pod = template.get("spec", {})
+    containers = pod.get("containers", [])
+    check(len(containers) == 1, "k8s: one container expected")
+    container = containers[0] if containers else {}
+    ports = {p.get("name"): p.get("containerPort") for p in container.get("ports", [])}
+    check(ports.get("http") == PORT, f"k8s: container port `http` must be {PORT}")
+    env = {e.get("name"): e.get("value") for e in container.get("env", [])}
+    check(env.get("QRPOSE_ADDR") == f"0.0.0.0:{PORT}", "k8s: QRPOSE_ADDR must listen on 0.0.0.0")
+    check(probe(container, "readinessProbe").get("path") == "/readyz",
+          "k8s: readiness probe must GET /readyz")
+    check(probe(container, "livenessProbe").get("path") == "/healthz",
+          "k8s: liveness probe must GET /healthz")
+    for kind in ("readinessProbe", "livenessProbe"):
+        check(probe(container, kind).get("port") in ("http", PORT), f"k8s: {kind} on the wrong port")
+    resources = container.get("resources", {})
+    for bound in ("requests", "limits"):
+        check({"cpu", "memory"} <= set(resources.get(bound, {})),
+              f"k8s: resource {bound} need cpu and memory")
+    pod_security = pod.get("securityContext", {})
+    container_security = container.get("securityContext", {})
+    check(pod_security.get("runAsNonRoot") is True and pod_security.get("runAsUser", 0) != 0,
+          "k8s: the pod must run as a non-root user")
+    check(container_security.get("allowPrivilegeEscalation") is False,
+          "k8s: allowPrivilegeEscalation must be false")
+    check(container_security.get("readOnlyRootFilesystem") is True,
+          "k8s: the root filesystem must be read-only")
+    check("ALL" in container_security.get("capabilities", {}).get("drop", []),
+          "k8s: capabilities must drop ALL")
+    grace_ms = int(env.get("QRPOSE_SHUTDOWN_GRACE_MS", "10000"))
+    pre_stop_s = container.get("lifecycle", {}).get("preStop", {}).get("sleep", {}).get("seconds", 0)
+    check(pre_stop_s * 1000 + grace_ms < pod.get("terminationGracePeriodSeconds", 30) * 1000,
+          "k8s: preStop sleep + QRPOSE_SHUTDOWN_GRACE_MS must fit terminationGracePeriodSeconds")
+    service = by_kind.get("Service", {})
+    check(service.get("spec", {}).get("selector", {}).items() <= labels.items()
+          and service.get("spec", {}).get("selector"),
+          "k8s: the Service's selector must match the pods")
+    check(any(p.get("targetPort") in ("http", PORT) for p in service.get("spec", {}).get("ports", [])),
+          "k8s: the Service must target the container port")
+    hpa = by_kind.get("HorizontalPodAutoscaler", {})
+    target = hpa.get("spec", {}).get("scaleTargetRef", {})
+    check(target.get("kind") == "Deployment"
+          and target.get("name") == deployment.get("metadata", {}).get("name"),
+          "k8s: the autoscaler must scale the Deployment")
+    metrics = hpa.get("spec", {}).get("metrics", [])
+    check(any(m.get("resource", {}).get("name") == "cpu" for m in metrics),
+          "k8s: the autoscaler must scale on CPU")
+    check(hpa.get("apiVersion") == "autoscaling/v2", "k8s: use autoscaling/v2")
+
+
+def main():
+    for step in (check_dockerfile, check_compose, check_kubernetes):
+        try:
+            step()
+        except (OSError, yaml.YAMLError, ValueError, AttributeError, TypeError) as e:
+            failures.append(f"{step.__name__}: {e}")
+    for failure in failures:
+        print(f"FAIL: {failure}")
+    if failures:
+        return 1
+    print("deployment files: ok (Dockerfile, compose.yaml, nginx.conf, k8s/)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
