@@ -3,10 +3,12 @@
 //!
 //! - [`decode`]: bytes → [`decode::GrayImage`], with [`decode::DecodeLimits`].
 //! - Backends behind [`Detector`]: [`rqrr`] and [`rxing`] always; `zxing_cpp` with the
-//!   `zxing-cpp` cargo feature. [`DetectorChoice::Auto`] uses the best one built and falls
-//!   back to the others, then to second passes of the best one on a contrast-stretched,
-//!   half-scale (large images), double-scale (small images) or inverted copy, when it reads
-//!   nothing; results are merged by position.
+//!   `zxing-cpp` cargo feature. [`DetectorChoice::Auto`] makes a quick pass first
+//!   (zxing-cpp's single read when built, else rxing on a half-scale copy of a large
+//!   image), then runs each backend at full resolution, best first, then second passes of
+//!   the best one on a contrast-stretched, inverted or double-scale copy, stopping as soon
+//!   as a code is read; results are merged by position. Symbols found but not read are
+//!   read again through their refined module grid ([`reread`]).
 //! - [`corners`]: sub-pixel corners and the twelve finder-pattern corners, whatever the
 //!   backend ([`profile`] measures single edges, [`homography`] maps the module grid).
 //!
@@ -22,6 +24,7 @@ pub mod decode;
 pub mod finders;
 pub mod homography;
 pub mod profile;
+pub mod reread;
 pub mod rqrr;
 pub mod rxing;
 #[cfg(feature = "zxing-cpp")]
@@ -117,7 +120,7 @@ pub fn detector_for(backend: Backend) -> Result<Box<dyn Detector>, DetectError> 
         Backend::Rqrr => Ok(Box::new(rqrr::RqrrDetector)),
         Backend::Rxing => Ok(Box::new(rxing::RxingDetector)),
         #[cfg(feature = "zxing-cpp")]
-        Backend::ZxingCpp => Ok(Box::new(zxing_cpp::ZxingCppDetector)),
+        Backend::ZxingCpp => Ok(Box::new(zxing_cpp::ZxingCppDetector::thorough())),
         #[cfg(not(feature = "zxing-cpp"))]
         Backend::ZxingCpp => Err(DetectError::BackendNotBuilt { backend }),
     }
@@ -185,24 +188,30 @@ pub fn merge_candidates(into: &mut Vec<Candidate>, new: Vec<Candidate>) {
     }
 }
 
-/// Front-end variants of an image for a second pass.
-fn second_pass_images(image: &GrayImage) -> Vec<(GrayImage, f64)> {
+/// Images up to this many px on their longer side get a double-scale second pass (the last
+/// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
+/// backend misses at their own size, are found there.
+pub const UPSCALE_MAX_SIDE_PX: usize = 1920;
+
+/// Front-end variants of an image for second passes: contrast-stretched, inverted (unless
+/// zxing-cpp, which also reads the negative itself, is the best backend) and double-scale
+/// (images of at most [`UPSCALE_MAX_SIDE_PX`]), with the scale that maps a copy's pixels
+/// back. No half-scale copy: the quick pass has read one (rxing) or zxing-cpp's own pyramid
+/// has.
+fn second_pass_images(image: &GrayImage, best: Backend) -> Vec<(GrayImage, f64)> {
     let mut out = Vec::new();
     if let Some(stretched) = stretch_contrast(image) {
         out.push((stretched, 1.0));
     }
-    if image.width().min(image.height()) >= 1200
-        && let Some(half) = downscale_half(image)
+    if best != Backend::ZxingCpp
+        && let Some(inverted) = invert(image)
     {
-        out.push((half, 2.0));
+        out.push((inverted, 1.0));
     }
-    if image.width().max(image.height()) <= 600
+    if image.width().max(image.height()) <= UPSCALE_MAX_SIDE_PX
         && let Some(double) = upscale_double(image)
     {
         out.push((double, 0.5));
-    }
-    if let Some(inverted) = invert(image) {
-        out.push((inverted, 1.0));
     }
     out
 }
@@ -261,17 +270,16 @@ pub fn stretch_contrast(image: &GrayImage) -> Option<GrayImage> {
     GrayImage::new(image.width(), image.height(), pixels)
 }
 
-/// Halves the image by 2 × 2 box averaging.
+/// Halves the image by 2 × 2 box averaging (rounded); an odd last row or column is dropped.
 pub fn downscale_half(image: &GrayImage) -> Option<GrayImage> {
     let (w, h) = (image.width() / 2, image.height() / 2);
+    let stride = image.width();
     let mut pixels = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let s = u16::from(image.get(2 * x, 2 * y))
-                + u16::from(image.get(2 * x + 1, 2 * y))
-                + u16::from(image.get(2 * x, 2 * y + 1))
-                + u16::from(image.get(2 * x + 1, 2 * y + 1));
-            pixels.push(u8::try_from(s / 4).unwrap_or(u8::MAX));
+    for pair in image.pixels().chunks_exact(2 * stride).take(h) {
+        let (top, bottom) = pair.split_at(stride);
+        for (t, b) in top.chunks_exact(2).zip(bottom.chunks_exact(2)).take(w) {
+            let s = u16::from(t[0]) + u16::from(t[1]) + u16::from(b[0]) + u16::from(b[1]);
+            pixels.push(u8::try_from((s + 2) / 4).unwrap_or(u8::MAX));
         }
     }
     GrayImage::new(w, h, pixels)
@@ -289,7 +297,136 @@ fn rescale(mut c: Candidate, scale: f64) -> Candidate {
     c
 }
 
+/// Images whose shorter side has at least this many px are first searched at half scale by
+/// the pure-Rust backends (`auto` in a build without zxing-cpp): a quarter of the pixels to
+/// binarise and scan. Codes of at least about 4 px per module (2 px at half scale) are read
+/// there; smaller ones fall through to the full-resolution pass.
+pub const HALF_SCALE_FIRST_MIN_SIDE_PX: usize = 700;
+
+/// Margin around a symbol found at half scale for the full-resolution read of its
+/// surroundings: a share of the symbol's bounding box on each side, plus the quiet zone.
+const CROP_MARGIN_SHARE: f64 = 0.25;
+/// Fixed extra margin of that crop, px.
+const CROP_MARGIN_PX: f64 = 8.0;
+
+/// The quick first pass of `auto`: zxing-cpp's one read when it is built, otherwise rxing
+/// on a half-scale copy of a large image and then again at full resolution on a crop around
+/// each symbol it read (whole-pixel corners at full resolution, for the refinement, at the
+/// cost of a few small images); `None` when there is no quick pass for this image.
+fn quick_pass(image: &GrayImage, best: Backend) -> Option<Vec<Candidate>> {
+    match best {
+        #[cfg(feature = "zxing-cpp")]
+        Backend::ZxingCpp => Some(zxing_cpp::ZxingCppDetector::fast().detect(image)),
+        Backend::Rxing if image.width().min(image.height()) >= HALF_SCALE_FIRST_MIN_SIDE_PX => {
+            let half = downscale_half(image)?;
+            let mut found = Vec::new();
+            for rough in rxing::RxingDetector.detect(&half) {
+                let rough = rescale(rough, 2.0);
+                let Some(crop) = Crop::around(image, &rough.corners_px) else {
+                    continue;
+                };
+                let precise = crop.image.as_ref().map(|c| rxing::RxingDetector.detect(c));
+                let precise: Vec<Candidate> = precise
+                    .unwrap_or_default()
+                    .into_iter()
+                    .filter(|c| c.payload.is_some())
+                    .map(|c| crop.to_source(c))
+                    .collect();
+                merge_candidates(&mut found, precise);
+            }
+            Some(found)
+        }
+        _ => None,
+    }
+}
+
+/// A rectangle of an image, copied out, with its offset in the source.
+struct Crop {
+    image: Option<GrayImage>,
+    x0: usize,
+    y0: usize,
+}
+
+impl Crop {
+    /// The bounding box of `corners_px` widened by the crop margins, clamped to the image.
+    fn around(image: &GrayImage, corners_px: &[PixelPoint; 4]) -> Option<Self> {
+        let (mut lo_u, mut lo_v, mut hi_u, mut hi_v) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for p in corners_px {
+            lo_u = lo_u.min(p.u());
+            lo_v = lo_v.min(p.v());
+            hi_u = hi_u.max(p.u());
+            hi_v = hi_v.max(p.v());
+        }
+        if !(lo_u.is_finite() && lo_v.is_finite() && hi_u.is_finite() && hi_v.is_finite()) {
+            return None;
+        }
+        let margin = CROP_MARGIN_SHARE * (hi_u - lo_u).max(hi_v - lo_v) + CROP_MARGIN_PX;
+        let max_u = (image.width() - 1) as f64;
+        let max_v = (image.height() - 1) as f64;
+        let x0 = (lo_u - margin).clamp(0.0, max_u).floor() as usize;
+        let y0 = (lo_v - margin).clamp(0.0, max_v).floor() as usize;
+        let x1 = (hi_u + margin).clamp(0.0, max_u).ceil() as usize;
+        let y1 = (hi_v + margin).clamp(0.0, max_v).ceil() as usize;
+        let (w, h) = (x1.checked_sub(x0)? + 1, y1.checked_sub(y0)? + 1);
+        let mut pixels = Vec::with_capacity(w * h);
+        for row in image.pixels().chunks_exact(image.width()).skip(y0).take(h) {
+            pixels.extend_from_slice(row.get(x0..x0 + w)?);
+        }
+        Some(Self {
+            image: GrayImage::new(w, h, pixels),
+            x0,
+            y0,
+        })
+    }
+
+    /// A candidate found in the crop, in source pixels.
+    fn to_source(&self, mut c: Candidate) -> Candidate {
+        let (dx, dy) = (self.x0 as f64, self.y0 as f64);
+        c.corners_px = c
+            .corners_px
+            .map(|p| PixelPoint::new(p.u() + dx, p.v() + dy));
+        c
+    }
+}
+
+fn any_decoded(found: &[Candidate]) -> bool {
+    found.iter().any(|c| c.payload.is_some())
+}
+
+/// Reads every undecoded candidate again through its refined module grid
+/// ([`reread::reread`]); `tried` holds the corners of candidates already tried, so that
+/// each is refined once however often `auto` calls this.
+fn reread_undecoded(image: &GrayImage, found: &mut [Candidate], tried: &mut Vec<[PixelPoint; 4]>) {
+    for c in found.iter_mut().filter(|c| c.payload.is_none()) {
+        if tried.contains(&c.corners_px) {
+            continue;
+        }
+        tried.push(c.corners_px);
+        let refinement = refine_corners(image, &c.corners_px, c.module_count);
+        let (RefineStatus::Refined, Some(n)) = (refinement.status, refinement.module_count) else {
+            continue;
+        };
+        if let Some(read) = reread::reread(image, &refinement.corners_px, n) {
+            c.payload = Some(read.payload);
+            c.text = read.text;
+            c.module_count = Some(n);
+        }
+    }
+}
+
 /// Every candidate the choice finds in `image`, before refinement.
+///
+/// `auto`: a quick pass first ([`HALF_SCALE_FIRST_MIN_SIDE_PX`], zxing-cpp's single read);
+/// then each backend in [`auto_order`] at full resolution; then second passes of the best
+/// one on front-end variants ([`second_pass_images`]). It stops after the first step that
+/// reads a code; undecoded symbols found on the way are kept. Every choice reads symbols
+/// that its backend found but could not decode again through their refined module grid
+/// ([`reread`]).
 ///
 /// # Errors
 /// [`DetectError::BackendNotBuilt`] when a single backend is asked for that is not built.
@@ -298,29 +435,53 @@ pub fn find_candidates(
     choice: DetectorChoice,
 ) -> Result<Vec<Candidate>, DetectError> {
     match choice {
-        DetectorChoice::Only(backend) => Ok(detector_for(backend)?.detect(image)),
+        DetectorChoice::Only(backend) => {
+            let mut found = detector_for(backend)?.detect(image);
+            reread_undecoded(image, &mut found, &mut Vec::new());
+            Ok(found)
+        }
         DetectorChoice::Auto => {
             let order = auto_order();
             let mut found: Vec<Candidate> = Vec::new();
-            for backend in &order {
-                let detector = detector_for(*backend)?;
-                merge_candidates(&mut found, detector.detect(image));
-                if found.iter().any(|c| c.payload.is_some()) {
+            let mut tried = Vec::new();
+            let Some(&best) = order.first() else {
+                return Ok(found);
+            };
+            if let Some(quick) = quick_pass(image, best) {
+                merge_candidates(&mut found, quick);
+                reread_undecoded(image, &mut found, &mut tried);
+                if any_decoded(&found) {
                     return Ok(found);
                 }
             }
-            if let Some(best) = order.first() {
-                let detector = detector_for(*best)?;
-                for (variant, scale) in second_pass_images(image) {
-                    let more = detector
-                        .detect(&variant)
-                        .into_iter()
-                        .map(|c| rescale(c, scale))
-                        .collect();
-                    merge_candidates(&mut found, more);
-                    if found.iter().any(|c| c.payload.is_some()) {
-                        break;
-                    }
+            for backend in &order {
+                merge_candidates(&mut found, detector_for(*backend)?.detect(image));
+                reread_undecoded(image, &mut found, &mut tried);
+                if any_decoded(&found) {
+                    return Ok(found);
+                }
+            }
+            let detector = detector_for(best)?;
+            for (variant, scale) in second_pass_images(image, best) {
+                let mut more: Vec<Candidate> = detector
+                    .detect(&variant)
+                    .into_iter()
+                    .map(|c| rescale(c, scale))
+                    .collect();
+                if scale < 1.0 && !any_decoded(&more) {
+                    // rqrr finds blurred symbols on the enlarged copy that it cannot read;
+                    // their refined grids often can be (at full resolution).
+                    more.extend(
+                        rqrr::RqrrDetector
+                            .detect(&variant)
+                            .into_iter()
+                            .map(|c| rescale(c, scale)),
+                    );
+                }
+                merge_candidates(&mut found, more);
+                reread_undecoded(image, &mut found, &mut tried);
+                if any_decoded(&found) {
+                    break;
                 }
             }
             Ok(found)

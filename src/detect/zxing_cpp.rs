@@ -1,21 +1,48 @@
 //! The zxing-cpp backend (C++, bundled and built by the `zxing-cpp` cargo feature).
-//! Reads every QR symbol, also inverted ones, and returns found-but-undecodable symbols too
-//! (`ReturnErrors`), whose payload is then `None`. Corners are whole pixels; the module
-//! count comes from the symbol's version.
+//! Reads every QR symbol and returns found-but-undecodable symbols too (`ReturnErrors`),
+//! whose payload is then `None`. Corners are whole pixels; the module count comes from the
+//! symbol's version.
+//!
+//! Two settings: [`ZxingCppDetector::thorough`] (the library's defaults: try harder, also
+//! inverted, and again on a 2×-downscaled pyramid down to 500 px; zxing-cpp runs *every*
+//! layer and both polarities whatever it already found, six reads of a 1280×720 frame) and
+//! [`ZxingCppDetector::fast`] (one read of the image as it is, normal polarity), which
+//! `auto` tries first.
 
 use super::decode::GrayImage;
 use super::{Backend, Candidate, Detector};
 use crate::geometry::frames::PixelPoint;
 
 /// zxing-cpp behind the [`Detector`] interface.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct ZxingCppDetector;
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ZxingCppDetector {
+    /// One read at full resolution, normal polarity, instead of the library's pyramid of
+    /// scales and both polarities.
+    fast: bool,
+}
+
+impl ZxingCppDetector {
+    /// The library's default search: every pyramid layer, both polarities.
+    pub fn thorough() -> Self {
+        Self { fast: false }
+    }
+    /// One read of the image as it is (normal polarity, no downscaled layers).
+    pub fn fast() -> Self {
+        Self { fast: true }
+    }
+}
+
+impl Default for ZxingCppDetector {
+    fn default() -> Self {
+        Self::thorough()
+    }
+}
 
 fn point(p: zxingcpp::PointI) -> PixelPoint {
     PixelPoint::new(f64::from(p.x), f64::from(p.y))
 }
 
-fn detect_unguarded(image: &GrayImage) -> Vec<Candidate> {
+fn detect_unguarded(image: &GrayImage, fast: bool) -> Vec<Candidate> {
     let Ok(view) = zxingcpp::ImageView::from_slice(
         image.pixels(),
         image.width(),
@@ -27,7 +54,8 @@ fn detect_unguarded(image: &GrayImage) -> Vec<Candidate> {
     let reader = zxingcpp::read()
         .formats([zxingcpp::BarcodeFormat::QRCode])
         .try_harder(true)
-        .try_invert(true)
+        .try_invert(!fast)
+        .try_downscale(!fast)
         .try_rotate(true)
         .return_errors(true);
     let Ok(barcodes) = reader.from(&view) else {
@@ -67,7 +95,9 @@ impl Detector for ZxingCppDetector {
     }
 
     fn detect(&self, image: &GrayImage) -> Vec<Candidate> {
-        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| detect_unguarded(image)))
-            .unwrap_or_default()
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            detect_unguarded(image, self.fast)
+        }))
+        .unwrap_or_default()
     }
 }
