@@ -3,10 +3,11 @@
 //! instruction counts, which are stable on a shared machine where wall time is not.
 //!
 //! ```sh
-//! cargo run --release --example detect_speed -- [auto|rqrr|rxing|zxing-cpp] [1280x720|1920x1080] [ITERATIONS]
+//! cargo run --release --example detect_speed -- [auto|rqrr|rxing|zxing-cpp] [1280x720|1920x1080|FILE] [ITERATIONS]
 //! valgrind --tool=callgrind target/release/examples/detect_speed auto 1280x720 1
 //! ```
-//! Prints the median of each stage (decode, find candidates, refine) over the iterations.
+//! Prints the median of each stage (decode, find candidates, refine) over the iterations,
+//! and how each code's refinement ended. FILE: any JPEG or PNG instead of the bench frame.
 
 #[path = "../benches/common/mod.rs"]
 mod common;
@@ -30,11 +31,13 @@ fn main() {
     };
     let size = args.get(1).map(String::as_str).unwrap_or("1280x720");
     let iterations: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(20);
-    let Some(&(_, w, h, f)) = common::FRAMES.iter().find(|(name, ..)| *name == size) else {
-        eprintln!("unknown frame size {size}");
-        std::process::exit(2);
+    let jpeg = match common::FRAMES.iter().find(|(name, ..)| *name == size) {
+        Some(&(_, w, h, f)) => common::frame(w, h, f),
+        None => std::fs::read(size).unwrap_or_else(|e| {
+            eprintln!("{size} is neither a frame size nor a readable file: {e}");
+            std::process::exit(2);
+        }),
     };
-    let jpeg = common::frame(w, h, f);
     let limits = decode::DecodeLimits::default();
     let (mut t_decode, mut t_find, mut t_refine) = (Vec::new(), Vec::new(), Vec::new());
     let mut found = 0;
@@ -60,7 +63,18 @@ fn main() {
             .collect();
         let t3 = Instant::now();
         found = refined.len();
-        statuses = refined.iter().map(|r| r.status.as_str()).collect();
+        statuses = refined
+            .iter()
+            .zip(&candidates)
+            .map(|(r, c)| {
+                format!(
+                    "{} {} {:?}",
+                    c.backend.as_str(),
+                    r.status.as_str(),
+                    c.text.as_deref().unwrap_or("-")
+                )
+            })
+            .collect();
         t_decode.push((t1 - t0).as_secs_f64() * 1e3);
         t_find.push((t2 - t1).as_secs_f64() * 1e3);
         t_refine.push((t3 - t2).as_secs_f64() * 1e3);

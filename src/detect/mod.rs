@@ -194,9 +194,9 @@ pub fn merge_candidates(into: &mut Vec<Candidate>, new: Vec<Candidate>) {
 pub const UPSCALE_MAX_SIDE_PX: usize = 1920;
 
 /// Front-end variants of an image for second passes: contrast-stretched, inverted (unless
-/// zxing-cpp, which also reads the negative itself, is the best backend) and double-scale
-/// (images of at most [`UPSCALE_MAX_SIDE_PX`]), with the scale that maps a copy's pixels
-/// back. No half-scale copy: the quick pass has read one (rxing) or zxing-cpp's own pyramid
+/// zxing-cpp, which also reads the negative itself, is the best backend), sharpened
+/// ([`sharpen`]), and double-scale plain and sharpened (images of at most
+/// [`UPSCALE_MAX_SIDE_PX`]), with the scale that maps a copy's pixels back. No half-scale copy: the quick pass has read one (rxing) or zxing-cpp's own pyramid
 /// has.
 fn second_pass_images(image: &GrayImage, best: Backend) -> Vec<(GrayImage, f64)> {
     let mut out = Vec::new();
@@ -208,12 +208,83 @@ fn second_pass_images(image: &GrayImage, best: Backend) -> Vec<(GrayImage, f64)>
     {
         out.push((inverted, 1.0));
     }
+    if let Some(sharp) = sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT) {
+        out.push((sharp, 1.0));
+    }
     if image.width().max(image.height()) <= UPSCALE_MAX_SIDE_PX
         && let Some(double) = upscale_double(image)
     {
+        let sharp = sharpen(
+            &double,
+            2.0 * SHARPEN_DOUBLE_SIGMA_PX,
+            SHARPEN_DOUBLE_AMOUNT,
+        );
         out.push((double, 0.5));
+        if let Some(sharp) = sharp {
+            out.push((sharp, 0.5));
+        }
     }
     out
+}
+
+/// Unsharp mask of the sharpened second pass: Gaussian σ, source px.
+pub const SHARPEN_SIGMA_PX: f64 = 1.5;
+/// Unsharp mask of the sharpened second pass: amount (1 doubles the detail).
+pub const SHARPEN_AMOUNT: f64 = 2.0;
+/// Unsharp mask of the sharpened double-scale pass: Gaussian σ, source px.
+pub const SHARPEN_DOUBLE_SIGMA_PX: f64 = 1.0;
+/// Unsharp mask of the sharpened double-scale pass: amount.
+pub const SHARPEN_DOUBLE_AMOUNT: f64 = 3.0;
+
+/// Unsharp mask: `image + amount · (image − Gaussian(image, σ))`, clamped to 0-255.
+/// Blur of σ ≈ 0.5 module leaves a module-wide pattern a sixth of its contrast; this gives
+/// the binarisers of the backends some of it back (measured on the rendered set, see
+/// docs/detection.md).
+pub fn sharpen(image: &GrayImage, sigma_px: f64, amount: f64) -> Option<GrayImage> {
+    let (w, h) = (image.width(), image.height());
+    let radius = (3.0 * sigma_px).ceil().max(1.0) as usize;
+    let kernel: Vec<f32> = {
+        let raw: Vec<f64> = (0..=2 * radius)
+            .map(|k| {
+                let x = k as f64 - radius as f64;
+                (-0.5 * x * x / (sigma_px * sigma_px)).exp()
+            })
+            .collect();
+        let sum: f64 = raw.iter().sum();
+        raw.iter().map(|k| (k / sum) as f32).collect()
+    };
+    let src: Vec<f32> = image.pixels().iter().map(|&p| f32::from(p)).collect();
+    // Horizontal pass on an edge-padded copy of each row, then the vertical pass a whole
+    // row at a time (both loops vectorise).
+    let mut tmp = vec![0.0f32; w * h];
+    let mut padded = vec![0.0f32; w + 2 * radius];
+    for (row, out) in src.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
+        let (first, last) = (row[0], row[w - 1]);
+        padded[..radius].fill(first);
+        padded[radius..radius + w].copy_from_slice(row);
+        padded[radius + w..].fill(last);
+        for (o, window) in out.iter_mut().zip(padded.windows(2 * radius + 1)) {
+            *o = kernel.iter().zip(window).map(|(k, p)| k * p).sum();
+        }
+    }
+    let amount = amount as f32;
+    let mut blurred = vec![0.0f32; w];
+    let mut pixels = Vec::with_capacity(w * h);
+    for (y, row) in src.chunks_exact(w).enumerate() {
+        blurred.fill(0.0);
+        for (k, &kv) in kernel.iter().enumerate() {
+            let yy = (y + k).saturating_sub(radius).min(h - 1);
+            for (b, &t) in blurred.iter_mut().zip(&tmp[yy * w..(yy + 1) * w]) {
+                *b += kv * t;
+            }
+        }
+        pixels.extend(
+            row.iter()
+                .zip(&blurred)
+                .map(|(&v, &b)| (v + amount * (v - b)).round().clamp(0.0, 255.0) as u8),
+        );
+    }
+    GrayImage::new(w, h, pixels)
 }
 
 /// The photographic negative, for light-on-dark codes.
@@ -394,6 +465,17 @@ impl Crop {
     }
 }
 
+/// The detector of the second passes: the best backend, zxing-cpp in its fast setting (its
+/// thorough one would read each variant again downscaled and inverted, which the variants
+/// themselves and its own full pass have covered).
+fn second_pass_detector(best: Backend) -> Result<Box<dyn Detector>, DetectError> {
+    match best {
+        #[cfg(feature = "zxing-cpp")]
+        Backend::ZxingCpp => Ok(Box::new(zxing_cpp::ZxingCppDetector::fast())),
+        other => detector_for(other),
+    }
+}
+
 fn any_decoded(found: &[Candidate]) -> bool {
     found.iter().any(|c| c.payload.is_some())
 }
@@ -461,7 +543,7 @@ pub fn find_candidates(
                     return Ok(found);
                 }
             }
-            let detector = detector_for(best)?;
+            let detector = second_pass_detector(best)?;
             for (variant, scale) in second_pass_images(image, best) {
                 let mut more: Vec<Candidate> = detector
                     .detect(&variant)
