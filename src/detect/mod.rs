@@ -118,7 +118,7 @@ pub enum DetectError {
 pub fn detector_for(backend: Backend) -> Result<Box<dyn Detector>, DetectError> {
     match backend {
         Backend::Rqrr => Ok(Box::new(rqrr::RqrrDetector)),
-        Backend::Rxing => Ok(Box::new(rxing::RxingDetector)),
+        Backend::Rxing => Ok(Box::new(rxing::RxingDetector::hybrid())),
         #[cfg(feature = "zxing-cpp")]
         Backend::ZxingCpp => Ok(Box::new(zxing_cpp::ZxingCppDetector::thorough())),
         #[cfg(not(feature = "zxing-cpp"))]
@@ -193,38 +193,86 @@ pub fn merge_candidates(into: &mut Vec<Candidate>, new: Vec<Candidate>) {
 /// backend misses at their own size, are found there.
 pub const UPSCALE_MAX_SIDE_PX: usize = 1920;
 
-/// Front-end variants of an image for second passes: contrast-stretched, inverted (unless
-/// zxing-cpp, which also reads the negative itself, is the best backend), sharpened
-/// ([`sharpen`]), and double-scale plain and sharpened (images of at most
-/// [`UPSCALE_MAX_SIDE_PX`]), with the scale that maps a copy's pixels back. No half-scale copy: the quick pass has read one (rxing) or zxing-cpp's own pyramid
-/// has.
-fn second_pass_images(image: &GrayImage, best: Backend) -> Vec<(GrayImage, f64)> {
-    let mut out = Vec::new();
-    if let Some(stretched) = stretch_contrast(image) {
-        out.push((stretched, 1.0));
-    }
-    if best != Backend::ZxingCpp
-        && let Some(inverted) = invert(image)
-    {
-        out.push((inverted, 1.0));
-    }
-    if let Some(sharp) = sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT) {
-        out.push((sharp, 1.0));
-    }
-    if image.width().max(image.height()) <= UPSCALE_MAX_SIDE_PX
-        && let Some(double) = upscale_double(image)
-    {
-        let sharp = sharpen(
-            &double,
-            2.0 * SHARPEN_DOUBLE_SIGMA_PX,
-            SHARPEN_DOUBLE_AMOUNT,
-        );
-        out.push((double, 0.5));
-        if let Some(sharp) = sharp {
-            out.push((sharp, 0.5));
+/// One second pass of `auto`: a detector on a variant of the image, and the scale that maps
+/// the variant's pixels back (source px per variant px).
+struct SecondPass {
+    detector: Box<dyn Detector>,
+    image: GrayImage,
+    scale: f64,
+}
+
+/// Blur of the blurred global-histogram pass, px: it smooths halftone and sensor noise of
+/// small photos before the single threshold.
+pub const DENOISE_SIGMA_PX: f64 = 1.0;
+
+/// The second passes of `auto`, cheapest first, each built only when reached:
+/// 1. the best backend with the global-histogram binariser, on the image and on a copy
+///    blurred by [`DENOISE_SIGMA_PX`] (small noisy photos that the local binariser breaks
+///    up);
+/// 2. the best backend on a contrast-stretched, an inverted (unless zxing-cpp, which reads
+///    the negative itself, is the best) and a sharpened ([`sharpen`]) copy;
+/// 3. on a double-scale copy, plain and sharpened (images of at most
+///    [`UPSCALE_MAX_SIDE_PX`]).
+///
+/// zxing-cpp runs its single-read settings here: its thorough one would read each variant
+/// again downscaled and inverted, which its own full pass has covered.
+fn second_passes(image: &GrayImage, best: Backend) -> impl Iterator<Item = SecondPass> + '_ {
+    type Make<'a> = Box<dyn Fn() -> Option<SecondPass> + 'a>;
+    let local = move || -> Option<Box<dyn Detector>> {
+        match best {
+            #[cfg(feature = "zxing-cpp")]
+            Backend::ZxingCpp => Some(Box::new(zxing_cpp::ZxingCppDetector::fast())),
+            other => detector_for(other).ok(),
         }
-    }
-    out
+    };
+    let global = move || -> Option<Box<dyn Detector>> {
+        match best {
+            #[cfg(feature = "zxing-cpp")]
+            Backend::ZxingCpp => Some(Box::new(zxing_cpp::ZxingCppDetector::global_histogram())),
+            Backend::Rqrr => None,
+            _ => Some(Box::new(rxing::RxingDetector::global_histogram())),
+        }
+    };
+    let pass = |detector: Option<Box<dyn Detector>>, image: Option<GrayImage>, scale: f64| {
+        Some(SecondPass {
+            detector: detector?,
+            image: image?,
+            scale,
+        })
+    };
+    let small = image.width().max(image.height()) <= UPSCALE_MAX_SIDE_PX;
+    let makers: Vec<Make<'_>> = vec![
+        Box::new(move || pass(global(), Some(image.clone()), 1.0)),
+        Box::new(move || pass(global(), sharpen(image, DENOISE_SIGMA_PX, -1.0), 1.0)),
+        Box::new(move || pass(local(), stretch_contrast(image), 1.0)),
+        Box::new(move || {
+            (best != Backend::ZxingCpp)
+                .then(|| pass(local(), invert(image), 1.0))
+                .flatten()
+        }),
+        Box::new(move || {
+            pass(
+                local(),
+                sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT),
+                1.0,
+            )
+        }),
+        Box::new(move || {
+            small
+                .then(|| pass(local(), upscale_double(image), 0.5))
+                .flatten()
+        }),
+        Box::new(move || {
+            let double = small.then(|| upscale_double(image)).flatten()?;
+            let sharp = sharpen(
+                &double,
+                2.0 * SHARPEN_DOUBLE_SIGMA_PX,
+                SHARPEN_DOUBLE_AMOUNT,
+            );
+            pass(local(), sharp, 0.5)
+        }),
+    ];
+    makers.into_iter().filter_map(|make| make())
 }
 
 /// Unsharp mask of the sharpened second pass: Gaussian σ, source px.
@@ -236,7 +284,8 @@ pub const SHARPEN_DOUBLE_SIGMA_PX: f64 = 1.0;
 /// Unsharp mask of the sharpened double-scale pass: amount.
 pub const SHARPEN_DOUBLE_AMOUNT: f64 = 3.0;
 
-/// Unsharp mask: `image + amount · (image − Gaussian(image, σ))`, clamped to 0-255.
+/// Unsharp mask: `image + amount · (image − Gaussian(image, σ))`, clamped to 0-255
+/// (`amount` = −1 is the Gaussian blur itself).
 /// Blur of σ ≈ 0.5 module leaves a module-wide pattern a sixth of its contrast; this gives
 /// the binarisers of the backends some of it back (measured on the rendered set, see
 /// docs/detection.md).
@@ -391,12 +440,15 @@ fn quick_pass(image: &GrayImage, best: Backend) -> Option<Vec<Candidate>> {
         Backend::Rxing if image.width().min(image.height()) >= HALF_SCALE_FIRST_MIN_SIDE_PX => {
             let half = downscale_half(image)?;
             let mut found = Vec::new();
-            for rough in rxing::RxingDetector.detect(&half) {
+            for rough in rxing::RxingDetector::hybrid().detect(&half) {
                 let rough = rescale(rough, 2.0);
                 let Some(crop) = Crop::around(image, &rough.corners_px) else {
                     continue;
                 };
-                let precise = crop.image.as_ref().map(|c| rxing::RxingDetector.detect(c));
+                let precise = crop
+                    .image
+                    .as_ref()
+                    .map(|c| rxing::RxingDetector::hybrid().detect(c));
                 let precise: Vec<Candidate> = precise
                     .unwrap_or_default()
                     .into_iter()
@@ -465,17 +517,6 @@ impl Crop {
     }
 }
 
-/// The detector of the second passes: the best backend, zxing-cpp in its fast setting (its
-/// thorough one would read each variant again downscaled and inverted, which the variants
-/// themselves and its own full pass have covered).
-fn second_pass_detector(best: Backend) -> Result<Box<dyn Detector>, DetectError> {
-    match best {
-        #[cfg(feature = "zxing-cpp")]
-        Backend::ZxingCpp => Ok(Box::new(zxing_cpp::ZxingCppDetector::fast())),
-        other => detector_for(other),
-    }
-}
-
 fn any_decoded(found: &[Candidate]) -> bool {
     found.iter().any(|c| c.payload.is_some())
 }
@@ -505,7 +546,7 @@ fn reread_undecoded(image: &GrayImage, found: &mut [Candidate], tried: &mut Vec<
 ///
 /// `auto`: a quick pass first ([`HALF_SCALE_FIRST_MIN_SIDE_PX`], zxing-cpp's single read);
 /// then each backend in [`auto_order`] at full resolution; then second passes of the best
-/// one on front-end variants ([`second_pass_images`]). It stops after the first step that
+/// one on front-end variants ([`second_passes`]). It stops after the first step that
 /// reads a code; undecoded symbols found on the way are kept. Every choice reads symbols
 /// that its backend found but could not decode again through their refined module grid
 /// ([`reread`]).
@@ -529,40 +570,41 @@ pub fn find_candidates(
             let Some(&best) = order.first() else {
                 return Ok(found);
             };
-            if let Some(quick) = quick_pass(image, best) {
-                merge_candidates(&mut found, quick);
-                reread_undecoded(image, &mut found, &mut tried);
-                if any_decoded(&found) {
-                    return Ok(found);
-                }
+            // Each step's candidates are re-read before they are merged, so that an unread
+            // duplicate from an earlier step does not shadow a symbol this step can read.
+            let mut add = |found: &mut Vec<Candidate>, mut new: Vec<Candidate>| {
+                reread_undecoded(image, &mut new, &mut tried);
+                merge_candidates(found, new);
+                any_decoded(found)
+            };
+            if let Some(quick) = quick_pass(image, best)
+                && add(&mut found, quick)
+            {
+                return Ok(found);
             }
             for backend in &order {
-                merge_candidates(&mut found, detector_for(*backend)?.detect(image));
-                reread_undecoded(image, &mut found, &mut tried);
-                if any_decoded(&found) {
+                if add(&mut found, detector_for(*backend)?.detect(image)) {
                     return Ok(found);
                 }
             }
-            let detector = second_pass_detector(best)?;
-            for (variant, scale) in second_pass_images(image, best) {
-                let mut more: Vec<Candidate> = detector
-                    .detect(&variant)
+            for pass in second_passes(image, best) {
+                let mut more: Vec<Candidate> = pass
+                    .detector
+                    .detect(&pass.image)
                     .into_iter()
-                    .map(|c| rescale(c, scale))
+                    .map(|c| rescale(c, pass.scale))
                     .collect();
-                if scale < 1.0 && !any_decoded(&more) {
+                if pass.scale < 1.0 && !any_decoded(&more) {
                     // rqrr finds blurred symbols on the enlarged copy that it cannot read;
                     // their refined grids often can be (at full resolution).
                     more.extend(
                         rqrr::RqrrDetector
-                            .detect(&variant)
+                            .detect(&pass.image)
                             .into_iter()
-                            .map(|c| rescale(c, scale)),
+                            .map(|c| rescale(c, pass.scale)),
                     );
                 }
-                merge_candidates(&mut found, more);
-                reread_undecoded(image, &mut found, &mut tried);
-                if any_decoded(&found) {
+                if add(&mut found, more) {
                     break;
                 }
             }
