@@ -8,6 +8,8 @@
 //! ```
 //! Prints the median of each stage (decode, find candidates, refine) over the iterations,
 //! and how each code's refinement ended. FILE: any JPEG or PNG instead of the bench frame.
+//! With `QRPOSE_WRITE_FRAME=path.jpg` the frame is also written there (to time other
+//! readers on the very same bytes).
 
 #[path = "../benches/common/mod.rs"]
 mod common;
@@ -38,6 +40,11 @@ fn main() {
             std::process::exit(2);
         }),
     };
+    if let Ok(path) = std::env::var("QRPOSE_WRITE_FRAME")
+        && let Err(e) = std::fs::write(&path, &jpeg)
+    {
+        eprintln!("cannot write {path}: {e}");
+    }
     let limits = decode::DecodeLimits::default();
     let (mut t_decode, mut t_find, mut t_refine) = (Vec::new(), Vec::new(), Vec::new());
     let mut found = 0;
