@@ -6,7 +6,8 @@
 //! ```
 //!
 //! Renders `--count` photos (sizes 30-100 mm, distance 120-1200 mm with at least
-//! `MIN_MODULE_PX` px per module, tilt up to 40°, any in-plane rotation, blur σ 0.4-1.4 px,
+//! `MIN_MODULE_PX` px per module on every side of the projected symbol (`--module-rule
+//! distance`: only at a fronto-parallel view, the first set's rule), tilt up to 40°, any in-plane rotation, blur σ 0.4-1.4 px,
 //! noise σ 1-4 grey levels, uneven lighting, clutter, JPEG quality 70-95, 1280×720 and
 //! 1920×1080 cameras), writes each as `DIR/NNNN.jpg` with `DIR/NNNN.json` (ground truth and
 //! camera), runs every backend built, and prints detected %, payload correct %, corner error
@@ -36,6 +37,11 @@ struct Args {
     count: usize,
     seed: u64,
     out: PathBuf,
+    /// Keep only views whose projected modules are ≥ MIN_MODULE_PX on every side of the
+    /// symbol (the default); `--module-rule distance` keeps the first rule, which limited
+    /// the distance so that a fronto-parallel module is ≥ MIN_MODULE_PX, and let tilt
+    /// shrink modules below it.
+    projected_rule: bool,
 }
 
 fn parse_args() -> Args {
@@ -43,6 +49,7 @@ fn parse_args() -> Args {
         count: 200,
         seed: 1,
         out: PathBuf::from("target/accuracy"),
+        projected_rule: true,
     };
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -50,6 +57,7 @@ fn parse_args() -> Args {
             "--count" => args.count = it.next().and_then(|v| v.parse().ok()).unwrap_or(200),
             "--seed" => args.seed = it.next().and_then(|v| v.parse().ok()).unwrap_or(1),
             "--out" => args.out = it.next().map(PathBuf::from).unwrap_or(args.out),
+            "--module-rule" => args.projected_rule = it.next().as_deref() != Some("distance"),
             _ => eprintln!("ignoring {a}"),
         }
     }
@@ -71,7 +79,7 @@ fn random_payload(rng: &mut StdRng) -> String {
     format!("SKU-{body}")
 }
 
-fn make_case(seed: u64) -> Option<Case> {
+fn make_case(seed: u64, projected_rule: bool) -> Option<Case> {
     let mut rng = StdRng::seed_from_u64(seed);
     let hd = rng.gen_bool(0.5);
     let (w, h, f) = if hd {
@@ -129,6 +137,17 @@ fn make_case(seed: u64) -> Option<Case> {
                 && p[1] < f64::from(h) - margin
         });
         if !inside {
+            continue;
+        }
+        let side = |a: usize, b: usize| {
+            let (p, q) = (truth.corners_px[a], truth.corners_px[b]);
+            (p[0] - q[0]).hypot(p[1] - q[1])
+        };
+        let min_module_px = [side(0, 1), side(1, 2), side(2, 3), side(3, 0)]
+            .into_iter()
+            .fold(f64::INFINITY, f64::min)
+            / n as f64;
+        if projected_rule && min_module_px < MIN_MODULE_PX {
             continue;
         }
         let effects = Effects {
@@ -267,7 +286,9 @@ fn main() {
         std::process::exit(1);
     }
     let cases: Vec<(usize, Case)> = (0..args.count)
-        .filter_map(|i| make_case(args.seed * 1_000_003 + i as u64).map(|c| (i, c)))
+        .filter_map(|i| {
+            make_case(args.seed * 1_000_003 + i as u64, args.projected_rule).map(|c| (i, c))
+        })
         .collect();
     eprintln!(
         "rendering {} images into {}",

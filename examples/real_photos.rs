@@ -7,16 +7,20 @@
 //! ```
 //!
 //! A code counts as read when a detected symbol's text equals one of the image's expected
-//! texts. Prints a markdown table and writes nothing.
+//! texts. Prints a markdown table and writes nothing; with `--misses`, also each image
+//! where `auto` missed a code, with what every detector read there.
 
 use qrpose::detect::{Backend, DetectorChoice, decode, find_candidates};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let show_misses = args.iter().any(|a| a == "--misses");
     let root = PathBuf::from(
-        std::env::args()
-            .nth(1)
+        args.iter()
+            .find(|a| !a.starts_with("--"))
+            .cloned()
             .unwrap_or_else(|| "../shared/data/qr-photos/zxing-cpp".to_owned()),
     );
     let manifest: serde_json::Value = match std::fs::read(root.join("manifest.json"))
@@ -56,6 +60,7 @@ fn main() {
             continue;
         };
         let image = decode::decode_gray(&bytes, &decode::DecodeLimits::default());
+        let mut seen = Vec::new();
         for (name, choice) in &detectors {
             let texts: Vec<String> = image
                 .as_ref()
@@ -66,6 +71,14 @@ fn main() {
                 .filter_map(|c| c.text)
                 .collect();
             let read = expected.iter().filter(|t| texts.contains(t)).count();
+            seen.push(format!("{name} {read}/{} {texts:?}", expected.len()));
+            if show_misses && *name == "auto" && read < expected.len() {
+                println!(
+                    "miss {}: expected {expected:?}; {}",
+                    path.display(),
+                    seen.join("; ")
+                );
+            }
             let cell = table
                 .entry(group.clone())
                 .or_default()

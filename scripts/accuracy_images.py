@@ -4,6 +4,7 @@ and zxing-cpp (PyPI), corners fed to OpenCV's IPPE pose (solvePnP, SOLVEPNP_IPPE
 printed beside our numbers from the same run.
 
     python3 scripts/accuracy_images.py            # renders + runs ours, then the baselines
+    python3 scripts/accuracy_images.py --features zxing-cpp   # ours with the zxing-cpp backend
     python3 scripts/accuracy_images.py --photos ../shared/data/qr-photos/zxing-cpp
 
 Installs its own venv in target/pyenv (opencv-python-headless, zxing-cpp, numpy). Ours:
@@ -88,20 +89,30 @@ def detect_zxing(gray):
     return out
 
 
-def rendered_set(out_dir, count):
-    cmd = ["cargo", "run", "--release", "--example", "accuracy_images", "--",
-           "--count", str(count), "--out", str(out_dir)]
+def cargo_example(name, features):
+    cmd = ["cargo", "run", "--release"]
+    if features:
+        cmd += ["--features", features]
+    return cmd + ["--example", name, "--"]
+
+
+def rendered_set(out_dir, count, features):
+    cmd = cargo_example("accuracy_images", features) + ["--count", str(count), "--out", str(out_dir)]
     print("$", " ".join(cmd), file=sys.stderr)
     ours = subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True, text=True).stdout
     print("Ours (from the Rust example):\n")
     print(ours)
     import cv2, numpy as np
-    print("| baseline | images | detected % | payload ok % | corner err median / p90 px | rotation err median / p90 ° | position err median / p90 mm |")
-    print("|---|---|---|---|---|---|---|")
+    print("| baseline | images | detected % | payload ok % | corner err median / p90 px | mean corner offset (du, dv) px | rotation err median / p90 ° | position err median / p90 mm |")
+    print("|---|---|---|---|---|---|---|---|")
     metas = sorted(p for p in Path(out_dir).glob("*.json") if p.name != "ours.json")
-    for name, fn in [("opencv-aruco", detect_opencv), ("zxing-cpp (PyPI)", detect_zxing)]:
+    # zxing-cpp's corners are whole pixels on module edges; the "−0.5 px" row moves them into
+    # our convention (integer = pixel centre), to show that its error is not just that offset.
+    baselines = [("opencv-aruco", detect_opencv, 0.0), ("zxing-cpp (PyPI)", detect_zxing, 0.0),
+                 ("zxing-cpp (PyPI), corners −0.5 px", detect_zxing, -0.5)]
+    for name, fn, shift in baselines:
         det = ok = 0
-        cerr, rerr, perr = [], [], []
+        cerr, rerr, perr, offsets = [], [], [], []
         for mp in metas:
             meta = json.loads(mp.read_text())
             gray = cv2.imread(str(mp.with_suffix(".jpg")), cv2.IMREAD_GRAYSCALE)
@@ -111,25 +122,28 @@ def rendered_set(out_dir, count):
             if not found:
                 continue
             text, corners = min(found, key=lambda f: np.linalg.norm(np.mean(f[1], 0) - tc.mean(0)))
-            corners = np.array(corners, dtype=np.float64)
+            corners = np.array(corners, dtype=np.float64) + shift
             if np.linalg.norm(corners.mean(0) - tc.mean(0)) > 0.5 * np.linalg.norm(tc[0] - tc[1]):
                 continue
             det += 1
             ok += text == meta["payload"]
             cerr += list(np.linalg.norm(corners - tc, axis=1))
+            offsets += list(corners - tc)
             pose = pose_ippe(corners, meta["marker_size_mm"], meta["camera"])
             if pose:
                 rerr.append(rotation_error_deg(pose[0], truth["rotation_matrix"]))
                 perr.append(float(np.linalg.norm(pose[1] - np.array(truth["position_mm"]))))
         n = max(len(metas), 1)
+        mean_off = np.mean(offsets, axis=0) if offsets else [float("nan")] * 2
         print(f"| {name} | {len(metas)} | {100 * det / n:.1f} | {100 * ok / n:.1f} | "
-              f"{pct(cerr, .5):.3f} / {pct(cerr, .9):.3f} | {pct(rerr, .5):.3f} / {pct(rerr, .9):.3f} | "
+              f"{pct(cerr, .5):.3f} / {pct(cerr, .9):.3f} | {mean_off[0]:+.2f}, {mean_off[1]:+.2f} | "
+              f"{pct(rerr, .5):.3f} / {pct(rerr, .9):.3f} | "
               f"{pct(perr, .5):.2f} / {pct(perr, .9):.2f} |")
 
 
-def photos(root):
+def photos(root, features):
     import cv2
-    ours = subprocess.run(["cargo", "run", "--release", "--example", "real_photos", "--", str(root)],
+    ours = subprocess.run(cargo_example("real_photos", features) + [str(root)],
                           cwd=ROOT, check=True, capture_output=True, text=True).stdout
     print("Ours (from the Rust example):\n")
     print(ours)
@@ -160,12 +174,13 @@ def main():
     ap.add_argument("--count", type=int, default=200)
     ap.add_argument("--out", default=str(ROOT / "target" / "accuracy"))
     ap.add_argument("--photos", help="folder with manifest.json: run the real-photo comparison")
+    ap.add_argument("--features", default="", help="cargo features for our examples, e.g. zxing-cpp")
     args = ap.parse_args()
     ensure_venv()
     if args.photos:
-        photos(args.photos)
+        photos(args.photos, args.features)
     else:
-        rendered_set(args.out, args.count)
+        rendered_set(args.out, args.count, args.features)
 
 
 if __name__ == "__main__":

@@ -197,3 +197,29 @@ fn simulate_refuses_an_unknown_set() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown rotation set"));
 }
+
+/// Regression: `qrpose estimate … | head -c 10` made `print_json` panic ("failed printing
+/// to stdout: Broken pipe", exit 101) once the reader had closed the pipe.
+#[test]
+fn estimate_stops_quietly_when_the_reader_closes_the_pipe() {
+    let body = std::fs::read_to_string(FIXTURE).expect("fixture");
+    let mut child = Command::new(BIN)
+        .args(["estimate", "-", "--pretty"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("qrpose starts");
+    // The reader goes away before qrpose has its input, so the write must meet a closed pipe.
+    drop(child.stdout.take());
+    child
+        .stdin
+        .take()
+        .expect("stdin")
+        .write_all(body.as_bytes())
+        .expect("write stdin");
+    let out = child.wait_with_output().expect("qrpose finishes");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "stderr: {stderr}");
+    assert_eq!(out.status.code(), Some(141), "stderr: {stderr}");
+}

@@ -471,3 +471,154 @@ fn cli_render_then_estimate_image_round_trips_the_pose() {
     assert_eq!(problem["field"], json!("marker_size_mm"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A 1280 × 720 frame with one code of `module_px` px per module at `blur_px` blur.
+fn hd_frame(payload: &str, distance_mm: f64, blur_px: f64, seed: u64) -> Rendered {
+    let marker = Marker::try_new(50.0).expect("valid size");
+    let r = EulerXyz::from_degrees(15.0, -20.0, 35.0).to_rotation();
+    let centre = Vector3::new(30.0, 10.0, distance_mm);
+    let scene = Scene {
+        payload: payload.as_bytes().to_vec(),
+        ec_level: EcLevel::M,
+        marker,
+        camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("valid camera"),
+        width_px: 1280,
+        height_px: 720,
+        pose: MarkerToCamera::new(r, centre - r * marker.centre().0.coords),
+    };
+    let effects = Effects {
+        supersample: 3,
+        blur_px,
+        noise: 2.0,
+        lighting: 0.2,
+        clutter: 20,
+        encoding: Encoding::Jpeg(85),
+        seed,
+        ..Effects::default()
+    };
+    render(&scene, &effects).expect("renders")
+}
+
+#[test]
+fn auto_reads_a_large_code_in_an_hd_frame_and_refines_it_at_full_resolution() {
+    // About 5 px per module: the quick pass reads it at half scale, then at full resolution
+    // on a crop; the corners must still be refined to the full-resolution tolerance.
+    let r = hd_frame("HD-FRAME-CODE", 400.0, 0.8, 11);
+    let image = decode_gray(&r.encoded, &DecodeLimits::default()).expect("decodes");
+    let codes = detect_codes(&image, DetectorChoice::Auto).expect("auto");
+    assert_eq!(codes.len(), 1);
+    assert_eq!(codes[0].candidate.text.as_deref(), Some("HD-FRAME-CODE"));
+    assert!(codes[0].is_refined(), "{:?}", codes[0].refinement.status);
+    let found = codes[0].corners_px().map(|p| [p.u(), p.v()]);
+    let err = max_corner_error_px(&found, &r.truth.corners_px);
+    assert!(err < CORNER_TOL_PX, "corner error {err} px");
+}
+
+#[test]
+fn reread_decodes_a_symbol_through_its_true_module_grid() {
+    // 2.8 px per module under σ = 1 px blur: module centres through the exact grid must
+    // decode (the path a found-but-unread symbol takes after refinement).
+    let r = hd_frame("REREAD-ME", 850.0, 1.0, 12);
+    let image = decode_gray(&r.encoded, &DecodeLimits::default()).expect("decodes");
+    let corners = r
+        .truth
+        .corners_px
+        .map(|p| qrpose::geometry::frames::PixelPoint::new(p[0], p[1]));
+    let n = r.truth.module_count;
+    let side_px = (corners[0].0 - corners[1].0).norm();
+    assert!(
+        side_px / (n as f64) < 3.0,
+        "{} px per module",
+        side_px / n as f64
+    );
+    let read = qrpose::detect::reread::reread(&image, &corners, n).expect("reads");
+    assert_eq!(read.payload, b"REREAD-ME");
+    assert_eq!(read.text.as_deref(), Some("REREAD-ME"));
+    // A grid one module off does not decode into anything.
+    let off = corners.map(|p| qrpose::geometry::frames::PixelPoint::new(p.u() + 2.5, p.v()));
+    assert_eq!(qrpose::detect::reread::reread(&image, &off, n), None);
+}
+
+#[test]
+fn sharpening_restores_contrast_of_blurred_modules_and_keeps_flat_areas() {
+    use qrpose::detect::{decode::GrayImage, sharpen};
+    // Alternating 2 px bars blurred to low contrast (values 110 and 146), on a flat field.
+    let (w, h) = (64, 16);
+    let pixels: Vec<u8> = (0..w * h)
+        .map(|i| {
+            let x = i % w;
+            if x < 32 {
+                128
+            } else if (x / 2) % 2 == 0 {
+                110
+            } else {
+                146
+            }
+        })
+        .collect();
+    let image = GrayImage::new(w, h, pixels).expect("image");
+    let sharp = sharpen(&image, 1.5, 2.0).expect("sharpens");
+    let row = &sharp.pixels()[8 * w..9 * w];
+    assert!(
+        row[4..28].iter().all(|&v| v == 128),
+        "flat stays flat: {row:?}"
+    );
+    let (lo, hi) = row[40..60]
+        .iter()
+        .fold((255, 0), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    assert!(hi - lo > 2 * (146 - 110), "contrast {lo}..{hi}");
+}
+
+#[cfg(feature = "zxing-cpp")]
+mod zxing_cpp_backend {
+    use super::*;
+    use qrpose::detect::{Detector, zxing_cpp::ZxingCppDetector};
+
+    #[test]
+    fn zxing_cpp_reads_a_rendered_code_with_its_version_and_refined_corners() {
+        let r = hd_frame("ZXING-CPP-CODE", 450.0, 0.9, 13);
+        let image = decode_gray(&r.encoded, &DecodeLimits::default()).expect("decodes");
+        for detector in [ZxingCppDetector::fast(), ZxingCppDetector::thorough()] {
+            let found = detector.detect(&image);
+            assert_eq!(found.len(), 1, "{detector:?}");
+            assert_eq!(found[0].text.as_deref(), Some("ZXING-CPP-CODE"));
+            assert_eq!(found[0].module_count, Some(r.truth.module_count));
+        }
+        let codes = detect_codes(&image, DetectorChoice::Only(Backend::ZxingCpp)).expect("built");
+        assert_eq!(codes.len(), 1);
+        assert!(codes[0].is_refined(), "{:?}", codes[0].refinement.status);
+        let found = codes[0].corners_px().map(|p| [p.u(), p.v()]);
+        let err = max_corner_error_px(&found, &r.truth.corners_px);
+        let raw = codes[0].candidate.corners_px.map(|p| [p.u(), p.v()]);
+        let raw_err = max_corner_error_px(&raw, &r.truth.corners_px);
+        assert!(err < CORNER_TOL_PX, "refined corner error {err} px");
+        assert!(err < raw_err, "refined {err} px, zxing-cpp {raw_err} px");
+    }
+
+    #[test]
+    fn auto_tries_zxing_cpp_first_when_it_is_built() {
+        let r = hd_frame("AUTO-ZXING", 450.0, 0.9, 14);
+        let image = decode_gray(&r.encoded, &DecodeLimits::default()).expect("decodes");
+        let codes = detect_codes(&image, DetectorChoice::Auto).expect("auto");
+        assert_eq!(codes.len(), 1);
+        assert_eq!(codes[0].candidate.backend, Backend::ZxingCpp);
+        assert_eq!(codes[0].candidate.text.as_deref(), Some("AUTO-ZXING"));
+    }
+
+    #[test]
+    fn only_the_thorough_zxing_cpp_setting_reads_a_negative_code() {
+        // Light-on-dark is read only by the thorough setting (it also tries the negative);
+        // the fast one reads nothing there, which is why auto falls back to it.
+        let r = hd_frame("NEGATIVE", 450.0, 0.9, 15);
+        let image = decode_gray(&r.encoded, &DecodeLimits::default()).expect("decodes");
+        let negative = qrpose::detect::invert(&image).expect("inverts");
+        let thorough = ZxingCppDetector::thorough().detect(&negative);
+        assert!(
+            thorough
+                .iter()
+                .any(|c| c.text.as_deref() == Some("NEGATIVE"))
+        );
+        let fast = ZxingCppDetector::fast().detect(&negative);
+        assert!(fast.iter().all(|c| c.payload.is_none()), "{fast:?}");
+    }
+}

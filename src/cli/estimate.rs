@@ -2,7 +2,7 @@
 //! `qrpose estimate --image photo.jpg --fx-px … --marker-size-mm …`: one photo in, what
 //! `POST /v1/pose/image` returns out.
 
-use super::EXIT_BAD_INPUT;
+use super::{EXIT_BAD_INPUT, EXIT_BROKEN_PIPE};
 use clap::Args;
 use qrpose::api::{
     estimate_corners,
@@ -10,7 +10,7 @@ use qrpose::api::{
     problem::{ErrorCode, Problem, parse_json},
 };
 use qrpose::detect::decode::DecodeLimits;
-use std::io::Read;
+use std::io::{Read, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -159,8 +159,19 @@ pub fn print_json<T: serde::Serialize>(value: &T, pretty: bool) -> ExitCode {
     };
     match json {
         Ok(json) => {
-            println!("{json}");
-            ExitCode::SUCCESS
+            // `println!` panics when stdout is gone (`qrpose estimate … | head -c 10`);
+            // a closed pipe is the reader's choice, so stop quietly with its exit code.
+            let mut stdout = std::io::stdout().lock();
+            match writeln!(stdout, "{json}").and_then(|()| stdout.flush()) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+                    ExitCode::from(EXIT_BROKEN_PIPE)
+                }
+                Err(e) => {
+                    eprintln!("qrpose: cannot write the response: {e}");
+                    ExitCode::FAILURE
+                }
+            }
         }
         Err(e) => {
             eprintln!("qrpose: cannot serialise the response: {e}");

@@ -16,6 +16,9 @@ use std::process::ExitCode;
 
 /// Exit code for input the API would answer with a 4xx problem.
 pub const EXIT_BAD_INPUT: u8 = 2;
+/// Exit code when the reader of standard output went away (128 + SIGPIPE, as a shell
+/// reports a process that a closed pipe killed).
+pub const EXIT_BROKEN_PIPE: u8 = 141;
 
 /// qrpose: where a QR code is in 3D and how it is turned, from one camera image.
 #[derive(Debug, Parser)]

@@ -365,10 +365,14 @@ fn point_on(axis: Axis, c: f64, t: f64, d: f64) -> ModulePoint {
 }
 
 /// Measures every usable site under `h`.
-fn observe(image: &GrayImage, h: &Homography, map: &ModuleMap) -> Vec<Observation> {
+/// `scan`: the first pass, from a backend's whole-pixel corners: every other site only (it
+/// just brings the homography close), each searched over
+/// ±[`super::profile::MAX_SHIFT_MODULES`]; later passes measure every site, starting at the
+/// current edge.
+fn observe(image: &GrayImage, h: &Homography, map: &ModuleMap, scan: bool) -> Vec<Observation> {
     let n = map.n;
     let mut out = Vec::new();
-    for s in sites(n) {
+    for s in sites(n).into_iter().filter(|s| !scan || s.k % 2 == 0) {
         let Some(runs) = site_runs(map, &s) else {
             continue;
         };
@@ -402,7 +406,7 @@ fn observe(image: &GrayImage, h: &Homography, map: &ModuleMap) -> Vec<Observatio
             if d.len() <= samples / 2 {
                 continue;
             }
-            let Some(fit) = fit_profile(&runs, &d, &intensity, SIGMA0_PX / across) else {
+            let Some(fit) = fit_profile(&runs, &d, &intensity, SIGMA0_PX / across, scan) else {
                 continue;
             };
             out.push(Observation {
@@ -572,9 +576,13 @@ fn finder_corners(obs: &[Observation]) -> Option<[PixelPoint; 12]> {
 
 /// How well the function patterns (finders, separators, timing) under the corners match
 /// an N-module symbol, in [−1, 1]: the mean signed darkness at their module centres.
-fn function_pattern_score(image: &GrayImage, corners: &[PixelPoint; 4], n: usize) -> Option<f64> {
+fn function_pattern_score(
+    image: &GrayImage,
+    corners: &[PixelPoint; 4],
+    n: usize,
+    (light, dark): (f64, f64),
+) -> Option<f64> {
     let h = Homography::from_corners(corners, n as f64)?;
-    let (light, dark) = quad_levels(image, corners)?;
     let contrast = light - dark;
     if contrast.abs() < 1.0 {
         return None;
@@ -627,13 +635,14 @@ pub fn estimate_module_count(image: &GrayImage, corners: &[PixelPoint; 4]) -> Op
     let side_px = (0..4)
         .map(|i| (corners[i].0 - corners[(i + 1) % 4].0).norm())
         .fold(f64::INFINITY, f64::min);
+    let levels = quad_levels(image, corners)?;
     let mut best: Option<(f64, usize)> = None;
     for version in 1..=40usize {
         let n = 17 + 4 * version;
         if side_px / (n as f64) < MIN_PX_PER_MODULE {
             break;
         }
-        if let Some(score) = function_pattern_score(image, corners, n)
+        if let Some(score) = function_pattern_score(image, corners, n, levels)
             && best.is_none_or(|(s, _)| score > s)
         {
             best = Some((score, n));
@@ -666,12 +675,12 @@ pub fn refine_corners(
         return unrefined(RefineStatus::TooSmall, Some(n));
     }
     let mut obs = Vec::new();
-    for _ in 0..ITERATIONS {
+    for pass in 0..ITERATIONS {
         let Some((light, dark)) = reference_levels(image, &h, n) else {
             return unrefined(RefineStatus::TooFewEdges, Some(n));
         };
         let map = module_map(image, &h, n, light, dark);
-        obs = observe(image, &h, &map);
+        obs = observe(image, &h, &map, pass == 0);
         match fit_homography(&obs, &h) {
             Some(next) => h = next,
             None => return unrefined(RefineStatus::TooFewEdges, Some(n)),
@@ -696,17 +705,4 @@ pub fn refine_corners(
         status: RefineStatus::Refined,
         observations: obs.len(),
     }
-}
-
-/// Scores of every candidate module count, for diagnostics.
-pub fn module_count_scores(
-    image: &GrayImage,
-    corners: &[PixelPoint; 4],
-) -> Vec<(usize, Option<f64>)> {
-    (1..=10usize)
-        .map(|v| {
-            let n = 17 + 4 * v;
-            (n, function_pattern_score(image, corners, n))
-        })
-        .collect()
 }

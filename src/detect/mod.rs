@@ -3,10 +3,12 @@
 //!
 //! - [`decode`]: bytes → [`decode::GrayImage`], with [`decode::DecodeLimits`].
 //! - Backends behind [`Detector`]: [`rqrr`] and [`rxing`] always; `zxing_cpp` with the
-//!   `zxing-cpp` cargo feature. [`DetectorChoice::Auto`] uses the best one built and falls
-//!   back to the others, then to second passes of the best one on a contrast-stretched,
-//!   half-scale (large images), double-scale (small images) or inverted copy, when it reads
-//!   nothing; results are merged by position.
+//!   `zxing-cpp` cargo feature. [`DetectorChoice::Auto`] makes a quick pass first
+//!   (zxing-cpp's single read when built, else rxing on a half-scale copy of a large
+//!   image), then runs each backend at full resolution, best first, then second passes of
+//!   the best one on a contrast-stretched, inverted or double-scale copy, stopping as soon
+//!   as a code is read; results are merged by position. Symbols found but not read are
+//!   read again through their refined module grid ([`reread`]).
 //! - [`corners`]: sub-pixel corners and the twelve finder-pattern corners, whatever the
 //!   backend ([`profile`] measures single edges, [`homography`] maps the module grid).
 //!
@@ -22,6 +24,7 @@ pub mod decode;
 pub mod finders;
 pub mod homography;
 pub mod profile;
+pub mod reread;
 pub mod rqrr;
 pub mod rxing;
 #[cfg(feature = "zxing-cpp")]
@@ -115,9 +118,9 @@ pub enum DetectError {
 pub fn detector_for(backend: Backend) -> Result<Box<dyn Detector>, DetectError> {
     match backend {
         Backend::Rqrr => Ok(Box::new(rqrr::RqrrDetector)),
-        Backend::Rxing => Ok(Box::new(rxing::RxingDetector)),
+        Backend::Rxing => Ok(Box::new(rxing::RxingDetector::hybrid())),
         #[cfg(feature = "zxing-cpp")]
-        Backend::ZxingCpp => Ok(Box::new(zxing_cpp::ZxingCppDetector)),
+        Backend::ZxingCpp => Ok(Box::new(zxing_cpp::ZxingCppDetector::thorough())),
         #[cfg(not(feature = "zxing-cpp"))]
         Backend::ZxingCpp => Err(DetectError::BackendNotBuilt { backend }),
     }
@@ -185,26 +188,152 @@ pub fn merge_candidates(into: &mut Vec<Candidate>, new: Vec<Candidate>) {
     }
 }
 
-/// Front-end variants of an image for a second pass.
-fn second_pass_images(image: &GrayImage) -> Vec<(GrayImage, f64)> {
-    let mut out = Vec::new();
-    if let Some(stretched) = stretch_contrast(image) {
-        out.push((stretched, 1.0));
+/// Images up to this many px on their longer side get a double-scale second pass (the last
+/// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
+/// backend misses at their own size, are found there.
+pub const UPSCALE_MAX_SIDE_PX: usize = 1920;
+
+/// One second pass of `auto`: a detector on a variant of the image, and the scale that maps
+/// the variant's pixels back (source px per variant px).
+struct SecondPass {
+    detector: Box<dyn Detector>,
+    image: GrayImage,
+    scale: f64,
+}
+
+/// Blur of the blurred global-histogram pass, px: it smooths halftone and sensor noise of
+/// small photos before the single threshold.
+pub const DENOISE_SIGMA_PX: f64 = 1.0;
+
+/// The second passes of `auto`, cheapest first, each built only when reached:
+/// 1. the best backend with the global-histogram binariser, on the image and on a copy
+///    blurred by [`DENOISE_SIGMA_PX`] (small noisy photos that the local binariser breaks
+///    up);
+/// 2. the best backend on a contrast-stretched, an inverted (unless zxing-cpp, which reads
+///    the negative itself, is the best) and a sharpened ([`sharpen`]) copy;
+/// 3. on a double-scale copy, plain and sharpened (images of at most
+///    [`UPSCALE_MAX_SIDE_PX`]).
+///
+/// zxing-cpp runs its single-read settings here: its thorough one would read each variant
+/// again downscaled and inverted, which its own full pass has covered.
+fn second_passes(image: &GrayImage, best: Backend) -> impl Iterator<Item = SecondPass> + '_ {
+    type Make<'a> = Box<dyn Fn() -> Option<SecondPass> + 'a>;
+    let local = move || -> Option<Box<dyn Detector>> {
+        match best {
+            #[cfg(feature = "zxing-cpp")]
+            Backend::ZxingCpp => Some(Box::new(zxing_cpp::ZxingCppDetector::fast())),
+            other => detector_for(other).ok(),
+        }
+    };
+    let global = move || -> Option<Box<dyn Detector>> {
+        match best {
+            #[cfg(feature = "zxing-cpp")]
+            Backend::ZxingCpp => Some(Box::new(zxing_cpp::ZxingCppDetector::global_histogram())),
+            Backend::Rqrr => None,
+            _ => Some(Box::new(rxing::RxingDetector::global_histogram())),
+        }
+    };
+    let pass = |detector: Option<Box<dyn Detector>>, image: Option<GrayImage>, scale: f64| {
+        Some(SecondPass {
+            detector: detector?,
+            image: image?,
+            scale,
+        })
+    };
+    let small = image.width().max(image.height()) <= UPSCALE_MAX_SIDE_PX;
+    let makers: Vec<Make<'_>> = vec![
+        Box::new(move || pass(global(), Some(image.clone()), 1.0)),
+        Box::new(move || pass(global(), sharpen(image, DENOISE_SIGMA_PX, -1.0), 1.0)),
+        Box::new(move || pass(local(), stretch_contrast(image), 1.0)),
+        Box::new(move || {
+            (best != Backend::ZxingCpp)
+                .then(|| pass(local(), invert(image), 1.0))
+                .flatten()
+        }),
+        Box::new(move || {
+            pass(
+                local(),
+                sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT),
+                1.0,
+            )
+        }),
+        Box::new(move || {
+            small
+                .then(|| pass(local(), upscale_double(image), 0.5))
+                .flatten()
+        }),
+        Box::new(move || {
+            let double = small.then(|| upscale_double(image)).flatten()?;
+            let sharp = sharpen(
+                &double,
+                2.0 * SHARPEN_DOUBLE_SIGMA_PX,
+                SHARPEN_DOUBLE_AMOUNT,
+            );
+            pass(local(), sharp, 0.5)
+        }),
+    ];
+    makers.into_iter().filter_map(|make| make())
+}
+
+/// Unsharp mask of the sharpened second pass: Gaussian σ, source px.
+pub const SHARPEN_SIGMA_PX: f64 = 1.5;
+/// Unsharp mask of the sharpened second pass: amount (1 doubles the detail).
+pub const SHARPEN_AMOUNT: f64 = 2.0;
+/// Unsharp mask of the sharpened double-scale pass: Gaussian σ, source px.
+pub const SHARPEN_DOUBLE_SIGMA_PX: f64 = 1.0;
+/// Unsharp mask of the sharpened double-scale pass: amount.
+pub const SHARPEN_DOUBLE_AMOUNT: f64 = 3.0;
+
+/// Unsharp mask: `image + amount · (image − Gaussian(image, σ))`, clamped to 0-255
+/// (`amount` = −1 is the Gaussian blur itself).
+/// Blur of σ ≈ 0.5 module leaves a module-wide pattern a sixth of its contrast; this gives
+/// the binarisers of the backends some of it back (measured on the rendered set, see
+/// docs/detection.md).
+pub fn sharpen(image: &GrayImage, sigma_px: f64, amount: f64) -> Option<GrayImage> {
+    let (w, h) = (image.width(), image.height());
+    let radius = (3.0 * sigma_px).ceil().max(1.0) as usize;
+    let kernel: Vec<f32> = {
+        let raw: Vec<f64> = (0..=2 * radius)
+            .map(|k| {
+                let x = k as f64 - radius as f64;
+                (-0.5 * x * x / (sigma_px * sigma_px)).exp()
+            })
+            .collect();
+        let sum: f64 = raw.iter().sum();
+        raw.iter().map(|k| (k / sum) as f32).collect()
+    };
+    let src: Vec<f32> = image.pixels().iter().map(|&p| f32::from(p)).collect();
+    // Horizontal pass on an edge-padded copy of each row, then the vertical pass a whole
+    // row at a time (both loops vectorise).
+    let mut tmp = vec![0.0f32; w * h];
+    let mut padded = vec![0.0f32; w + 2 * radius];
+    for (row, out) in src.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
+        let (first, last) = (row[0], row[w - 1]);
+        padded[..radius].fill(first);
+        padded[radius..radius + w].copy_from_slice(row);
+        padded[radius + w..].fill(last);
+        for (o, window) in out.iter_mut().zip(padded.windows(2 * radius + 1)) {
+            *o = kernel.iter().zip(window).map(|(k, p)| k * p).sum();
+        }
     }
-    if image.width().min(image.height()) >= 1200
-        && let Some(half) = downscale_half(image)
-    {
-        out.push((half, 2.0));
+    let amount = amount as f32;
+    let mut blurred = vec![0.0f32; w];
+    let mut pixels = Vec::with_capacity(w * h);
+    for (y, row) in src.chunks_exact(w).enumerate() {
+        blurred.fill(0.0);
+        for (k, &kv) in kernel.iter().enumerate() {
+            let yy = (y + k).saturating_sub(radius).min(h - 1);
+            for (b, &t) in blurred.iter_mut().zip(&tmp[yy * w..(yy + 1) * w]) {
+                *b += kv * t;
+            }
+        }
+        pixels.extend(
+            row.iter()
+                .zip(&blurred)
+                .map(|(&v, &b)| (v + amount * (v - b)).round().clamp(0.0, 255.0) as u8),
+        );
     }
-    if image.width().max(image.height()) <= 600
-        && let Some(double) = upscale_double(image)
-    {
-        out.push((double, 0.5));
-    }
-    if let Some(inverted) = invert(image) {
-        out.push((inverted, 1.0));
-    }
-    out
+    GrayImage::new(w, h, pixels)
 }
 
 /// The photographic negative, for light-on-dark codes.
@@ -261,17 +390,16 @@ pub fn stretch_contrast(image: &GrayImage) -> Option<GrayImage> {
     GrayImage::new(image.width(), image.height(), pixels)
 }
 
-/// Halves the image by 2 × 2 box averaging.
+/// Halves the image by 2 × 2 box averaging (rounded); an odd last row or column is dropped.
 pub fn downscale_half(image: &GrayImage) -> Option<GrayImage> {
     let (w, h) = (image.width() / 2, image.height() / 2);
+    let stride = image.width();
     let mut pixels = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let s = u16::from(image.get(2 * x, 2 * y))
-                + u16::from(image.get(2 * x + 1, 2 * y))
-                + u16::from(image.get(2 * x, 2 * y + 1))
-                + u16::from(image.get(2 * x + 1, 2 * y + 1));
-            pixels.push(u8::try_from(s / 4).unwrap_or(u8::MAX));
+    for pair in image.pixels().chunks_exact(2 * stride).take(h) {
+        let (top, bottom) = pair.split_at(stride);
+        for (t, b) in top.chunks_exact(2).zip(bottom.chunks_exact(2)).take(w) {
+            let s = u16::from(t[0]) + u16::from(t[1]) + u16::from(b[0]) + u16::from(b[1]);
+            pixels.push(u8::try_from((s + 2) / 4).unwrap_or(u8::MAX));
         }
     }
     GrayImage::new(w, h, pixels)
@@ -289,7 +417,139 @@ fn rescale(mut c: Candidate, scale: f64) -> Candidate {
     c
 }
 
+/// Images whose shorter side has at least this many px are first searched at half scale by
+/// the pure-Rust backends (`auto` in a build without zxing-cpp): a quarter of the pixels to
+/// binarise and scan. Codes of at least about 4 px per module (2 px at half scale) are read
+/// there; smaller ones fall through to the full-resolution pass.
+pub const HALF_SCALE_FIRST_MIN_SIDE_PX: usize = 700;
+
+/// Margin around a symbol found at half scale for the full-resolution read of its
+/// surroundings: a share of the symbol's bounding box on each side, plus the quiet zone.
+const CROP_MARGIN_SHARE: f64 = 0.25;
+/// Fixed extra margin of that crop, px.
+const CROP_MARGIN_PX: f64 = 8.0;
+
+/// The quick first pass of `auto`: zxing-cpp's one read when it is built, otherwise rxing
+/// on a half-scale copy of a large image and then again at full resolution on a crop around
+/// each symbol it read (whole-pixel corners at full resolution, for the refinement, at the
+/// cost of a few small images); `None` when there is no quick pass for this image.
+fn quick_pass(image: &GrayImage, best: Backend) -> Option<Vec<Candidate>> {
+    match best {
+        #[cfg(feature = "zxing-cpp")]
+        Backend::ZxingCpp => Some(zxing_cpp::ZxingCppDetector::fast().detect(image)),
+        Backend::Rxing if image.width().min(image.height()) >= HALF_SCALE_FIRST_MIN_SIDE_PX => {
+            let half = downscale_half(image)?;
+            let mut found = Vec::new();
+            for rough in rxing::RxingDetector::hybrid().detect(&half) {
+                let rough = rescale(rough, 2.0);
+                let Some(crop) = Crop::around(image, &rough.corners_px) else {
+                    continue;
+                };
+                let precise = crop
+                    .image
+                    .as_ref()
+                    .map(|c| rxing::RxingDetector::hybrid().detect(c));
+                let precise: Vec<Candidate> = precise
+                    .unwrap_or_default()
+                    .into_iter()
+                    .filter(|c| c.payload.is_some())
+                    .map(|c| crop.to_source(c))
+                    .collect();
+                merge_candidates(&mut found, precise);
+            }
+            Some(found)
+        }
+        _ => None,
+    }
+}
+
+/// A rectangle of an image, copied out, with its offset in the source.
+struct Crop {
+    image: Option<GrayImage>,
+    x0: usize,
+    y0: usize,
+}
+
+impl Crop {
+    /// The bounding box of `corners_px` widened by the crop margins, clamped to the image.
+    fn around(image: &GrayImage, corners_px: &[PixelPoint; 4]) -> Option<Self> {
+        let (mut lo_u, mut lo_v, mut hi_u, mut hi_v) = (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+        for p in corners_px {
+            lo_u = lo_u.min(p.u());
+            lo_v = lo_v.min(p.v());
+            hi_u = hi_u.max(p.u());
+            hi_v = hi_v.max(p.v());
+        }
+        if !(lo_u.is_finite() && lo_v.is_finite() && hi_u.is_finite() && hi_v.is_finite()) {
+            return None;
+        }
+        let margin = CROP_MARGIN_SHARE * (hi_u - lo_u).max(hi_v - lo_v) + CROP_MARGIN_PX;
+        let max_u = (image.width() - 1) as f64;
+        let max_v = (image.height() - 1) as f64;
+        let x0 = (lo_u - margin).clamp(0.0, max_u).floor() as usize;
+        let y0 = (lo_v - margin).clamp(0.0, max_v).floor() as usize;
+        let x1 = (hi_u + margin).clamp(0.0, max_u).ceil() as usize;
+        let y1 = (hi_v + margin).clamp(0.0, max_v).ceil() as usize;
+        let (w, h) = (x1.checked_sub(x0)? + 1, y1.checked_sub(y0)? + 1);
+        let mut pixels = Vec::with_capacity(w * h);
+        for row in image.pixels().chunks_exact(image.width()).skip(y0).take(h) {
+            pixels.extend_from_slice(row.get(x0..x0 + w)?);
+        }
+        Some(Self {
+            image: GrayImage::new(w, h, pixels),
+            x0,
+            y0,
+        })
+    }
+
+    /// A candidate found in the crop, in source pixels.
+    fn to_source(&self, mut c: Candidate) -> Candidate {
+        let (dx, dy) = (self.x0 as f64, self.y0 as f64);
+        c.corners_px = c
+            .corners_px
+            .map(|p| PixelPoint::new(p.u() + dx, p.v() + dy));
+        c
+    }
+}
+
+fn any_decoded(found: &[Candidate]) -> bool {
+    found.iter().any(|c| c.payload.is_some())
+}
+
+/// Reads every undecoded candidate again through its refined module grid
+/// ([`reread::reread`]); `tried` holds the corners of candidates already tried, so that
+/// each is refined once however often `auto` calls this.
+fn reread_undecoded(image: &GrayImage, found: &mut [Candidate], tried: &mut Vec<[PixelPoint; 4]>) {
+    for c in found.iter_mut().filter(|c| c.payload.is_none()) {
+        if tried.contains(&c.corners_px) {
+            continue;
+        }
+        tried.push(c.corners_px);
+        let refinement = refine_corners(image, &c.corners_px, c.module_count);
+        let (RefineStatus::Refined, Some(n)) = (refinement.status, refinement.module_count) else {
+            continue;
+        };
+        if let Some(read) = reread::reread(image, &refinement.corners_px, n) {
+            c.payload = Some(read.payload);
+            c.text = read.text;
+            c.module_count = Some(n);
+        }
+    }
+}
+
 /// Every candidate the choice finds in `image`, before refinement.
+///
+/// `auto`: a quick pass first ([`HALF_SCALE_FIRST_MIN_SIDE_PX`], zxing-cpp's single read);
+/// then each backend in [`auto_order`] at full resolution; then second passes of the best
+/// one on front-end variants ([`second_passes`]). It stops after the first step that
+/// reads a code; undecoded symbols found on the way are kept. Every choice reads symbols
+/// that its backend found but could not decode again through their refined module grid
+/// ([`reread`]).
 ///
 /// # Errors
 /// [`DetectError::BackendNotBuilt`] when a single backend is asked for that is not built.
@@ -298,29 +558,54 @@ pub fn find_candidates(
     choice: DetectorChoice,
 ) -> Result<Vec<Candidate>, DetectError> {
     match choice {
-        DetectorChoice::Only(backend) => Ok(detector_for(backend)?.detect(image)),
+        DetectorChoice::Only(backend) => {
+            let mut found = detector_for(backend)?.detect(image);
+            reread_undecoded(image, &mut found, &mut Vec::new());
+            Ok(found)
+        }
         DetectorChoice::Auto => {
             let order = auto_order();
             let mut found: Vec<Candidate> = Vec::new();
+            let mut tried = Vec::new();
+            let Some(&best) = order.first() else {
+                return Ok(found);
+            };
+            // Each step's candidates are re-read before they are merged, so that an unread
+            // duplicate from an earlier step does not shadow a symbol this step can read.
+            let mut add = |found: &mut Vec<Candidate>, mut new: Vec<Candidate>| {
+                reread_undecoded(image, &mut new, &mut tried);
+                merge_candidates(found, new);
+                any_decoded(found)
+            };
+            if let Some(quick) = quick_pass(image, best)
+                && add(&mut found, quick)
+            {
+                return Ok(found);
+            }
             for backend in &order {
-                let detector = detector_for(*backend)?;
-                merge_candidates(&mut found, detector.detect(image));
-                if found.iter().any(|c| c.payload.is_some()) {
+                if add(&mut found, detector_for(*backend)?.detect(image)) {
                     return Ok(found);
                 }
             }
-            if let Some(best) = order.first() {
-                let detector = detector_for(*best)?;
-                for (variant, scale) in second_pass_images(image) {
-                    let more = detector
-                        .detect(&variant)
-                        .into_iter()
-                        .map(|c| rescale(c, scale))
-                        .collect();
-                    merge_candidates(&mut found, more);
-                    if found.iter().any(|c| c.payload.is_some()) {
-                        break;
-                    }
+            for pass in second_passes(image, best) {
+                let mut more: Vec<Candidate> = pass
+                    .detector
+                    .detect(&pass.image)
+                    .into_iter()
+                    .map(|c| rescale(c, pass.scale))
+                    .collect();
+                if pass.scale < 1.0 && !any_decoded(&more) {
+                    // rqrr finds blurred symbols on the enlarged copy that it cannot read;
+                    // their refined grids often can be (at full resolution).
+                    more.extend(
+                        rqrr::RqrrDetector
+                            .detect(&pass.image)
+                            .into_iter()
+                            .map(|c| rescale(c, pass.scale)),
+                    );
+                }
+                if add(&mut found, more) {
+                    break;
                 }
             }
             Ok(found)

@@ -15,6 +15,7 @@
 //! removes that bias. δ, s, W, D are found by Levenberg-Marquardt after a coarse scan of δ.
 
 use nalgebra::{Matrix4, Vector4};
+use std::sync::LazyLock;
 
 /// One dark run of the pattern, [start, end) in modules along the profile.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,6 +46,14 @@ pub const MAX_SHIFT_MODULES: f64 = 0.75;
 /// Fewest profile samples worth fitting.
 pub const MIN_SAMPLES: usize = 8;
 const LM_ITERATIONS: usize = 8;
+/// Levenberg-Marquardt iterations after the δ scan: the pass that scans starts from a
+/// backend's whole-pixel corners and is followed by a full pass, so a rough fit will do.
+const LM_ITERATIONS_AFTER_SCAN: usize = 3;
+/// Spacing of the coarse δ scan, modules.
+const SCAN_STEP_MODULES: f64 = 0.25;
+/// The fit stops once δ moves less than this, modules (1e-4 module is 0.001 px at 10 px
+/// per module).
+const MIN_STEP_MODULES: f64 = 1e-4;
 
 /// erf, Abramowitz & Stegun 7.1.26 (|error| < 1.5e-7).
 fn erf(x: f64) -> f64 {
@@ -57,12 +66,66 @@ fn erf(x: f64) -> f64 {
     if x >= 0.0 { y } else { -y }
 }
 
-fn cdf(z: f64) -> f64 {
+/// Half-width of the tabulated normal distribution, standard deviations: beyond it Φ is 0
+/// or 1 and φ is 0 to double precision for this model's purposes (φ(8) ≈ 5e-15).
+const TABLE_Z_MAX: f64 = 8.0;
+/// Table entries per standard deviation. Linear interpolation between entries errs by at
+/// most h²/8 · max|φ'| ≈ 5e-7 in Φ at h = 1/256: far below a grey level.
+const TABLE_STEPS_PER_UNIT: f64 = 256.0;
+
+/// Φ and φ of the standard normal distribution at `TABLE_STEPS_PER_UNIT` steps on
+/// [−TABLE_Z_MAX, TABLE_Z_MAX]. The profile fit evaluates them a million times per frame;
+/// a table lookup replaces two `exp` calls (and libm's slow underflow path for the far
+/// ends of a pattern, which `exp(-z²)` hits at |z| > 27).
+struct NormalTable {
+    cdf: Vec<f64>,
+    pdf: Vec<f64>,
+}
+
+// The table length is a small positive constant (4098).
+#[allow(clippy::cast_possible_truncation)]
+static NORMAL_TABLE: LazyLock<NormalTable> = LazyLock::new(|| {
+    let count = (2.0 * TABLE_Z_MAX * TABLE_STEPS_PER_UNIT) as usize + 2;
+    let z = |k: usize| k as f64 / TABLE_STEPS_PER_UNIT - TABLE_Z_MAX;
+    NormalTable {
+        cdf: (0..count).map(|k| cdf_exact(z(k))).collect(),
+        pdf: (0..count).map(|k| pdf_exact(z(k))).collect(),
+    }
+});
+
+fn cdf_exact(z: f64) -> f64 {
     0.5 * (1.0 + erf(z / std::f64::consts::SQRT_2))
 }
 
-fn pdf(z: f64) -> f64 {
+fn pdf_exact(z: f64) -> f64 {
     (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt()
+}
+
+/// (Φ(z), φ(z)) from the table, linearly interpolated.
+// x is in [0, 2 · TABLE_Z_MAX · TABLE_STEPS_PER_UNIT) here, so the index cannot truncate.
+#[allow(clippy::cast_possible_truncation)]
+#[inline]
+fn normal(z: f64) -> (f64, f64) {
+    if z.is_nan() || z <= -TABLE_Z_MAX {
+        return (0.0, 0.0);
+    }
+    if z >= TABLE_Z_MAX {
+        return (1.0, 0.0);
+    }
+    let table = &*NORMAL_TABLE;
+    let x = (z + TABLE_Z_MAX) * TABLE_STEPS_PER_UNIT;
+    let k = x as usize;
+    let f = x - k as f64;
+    match (table.cdf.get(k..k + 2), table.pdf.get(k..k + 2)) {
+        (Some(c), Some(p)) => (c[0] + f * (c[1] - c[0]), p[0] + f * (p[1] - p[0])),
+        _ => (cdf_exact(z), pdf_exact(z)),
+    }
+}
+
+/// Φ(z) alone, from the table.
+#[inline]
+fn cdf(z: f64) -> f64 {
+    normal(z).0
 }
 
 /// Darkness S(d) of the blurred pattern and its derivatives by δ and s.
@@ -71,30 +134,49 @@ fn darkness(runs: &[DarkRun], d: f64, delta: f64, s: f64) -> (f64, f64, f64) {
     for run in runs {
         let za = (d - run.start - delta) / s;
         let zb = (d - run.end - delta) / s;
-        value += cdf(za) - cdf(zb);
-        d_delta += (-pdf(za) + pdf(zb)) / s;
-        d_s += (-pdf(za) * za + pdf(zb) * zb) / s;
+        let (ca, pa) = normal(za);
+        let (cb, pb) = normal(zb);
+        value += ca - cb;
+        d_delta += (-pa + pb) / s;
+        d_s += (-pa * za + pb * zb) / s;
     }
     (value, d_delta, d_s)
+}
+
+/// Darkness S(d) alone.
+fn darkness_value(runs: &[DarkRun], d: f64, delta: f64, s: f64) -> f64 {
+    runs.iter()
+        .map(|run| cdf((d - run.start - delta) / s) - cdf((d - run.end - delta) / s))
+        .sum()
 }
 
 fn cost(runs: &[DarkRun], d: &[f64], intensity: &[f64], p: &Vector4<f64>) -> f64 {
     d.iter()
         .zip(intensity)
         .map(|(&x, &i)| {
-            let (s, _, _) = darkness(runs, x, p[0], p[1]);
+            let s = darkness_value(runs, x, p[0], p[1]);
             let m = p[2] + (p[3] - p[2]) * s;
             (m - i) * (m - i)
         })
         .sum()
 }
 
-/// Light and dark levels by linear least squares for fixed δ and s.
-fn levels(runs: &[DarkRun], d: &[f64], intensity: &[f64], delta: f64, s: f64) -> (f64, f64) {
+/// Light and dark levels by linear least squares for fixed δ and s, and the cost at them:
+/// (W, D, cost). `buffer` holds S per sample between the two passes.
+fn levels_and_cost(
+    runs: &[DarkRun],
+    d: &[f64],
+    intensity: &[f64],
+    delta: f64,
+    s: f64,
+    buffer: &mut Vec<f64>,
+) -> (f64, f64, f64) {
     // M = W (1 − S) + D S
+    buffer.clear();
     let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for (&x, &i) in d.iter().zip(intensity) {
-        let (sv, _, _) = darkness(runs, x, delta, s);
+        let sv = darkness_value(runs, x, delta, s);
+        buffer.push(sv);
         let (f1, f2) = (1.0 - sv, sv);
         a11 += f1 * f1;
         a12 += f1 * f2;
@@ -103,39 +185,59 @@ fn levels(runs: &[DarkRun], d: &[f64], intensity: &[f64], delta: f64, s: f64) ->
         b2 += f2 * i;
     }
     let det = a11 * a22 - a12 * a12;
-    if det.abs() < 1e-12 {
+    let (w, dk) = if det.abs() < 1e-12 {
         let mean = intensity.iter().sum::<f64>() / intensity.len().max(1) as f64;
-        return (mean, mean);
-    }
-    ((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det)
+        (mean, mean)
+    } else {
+        ((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det)
+    };
+    let c = buffer
+        .iter()
+        .zip(intensity)
+        .map(|(&sv, &i)| {
+            let m = w + (dk - w) * sv;
+            (m - i) * (m - i)
+        })
+        .sum();
+    (w, dk, c)
 }
 
 /// Fits the pattern `runs` to samples `intensity` taken at profile positions `d` (modules).
-/// `sigma0` is the starting blur (modules). `None` when there are too few samples, the fit
+/// `sigma0` is the starting blur (modules). With `scan`, δ is first searched on a coarse
+/// grid over ±[`MAX_SHIFT_MODULES`] (for a start that may be a module fraction off) and
+/// refined by a few iterations only; without, the fit starts at δ = 0 and iterates to
+/// convergence. `None` when there are too few samples, the fit
 /// does not settle, the contrast vanishes, or δ leaves ±[`MAX_SHIFT_MODULES`].
 pub fn fit_profile(
     runs: &[DarkRun],
     d: &[f64],
     intensity: &[f64],
     sigma0: f64,
+    scan: bool,
 ) -> Option<ProfileFit> {
     if d.len() < MIN_SAMPLES || d.len() != intensity.len() || runs.is_empty() {
         return None;
     }
     // Coarse scan of δ with the levels solved exactly, so that LM starts in the right basin.
     let mut best: Option<(f64, Vector4<f64>)> = None;
-    for k in -3..=3 {
-        let delta = f64::from(k) * 0.25;
-        let (w, dk) = levels(runs, d, intensity, delta, sigma0);
+    let mut buffer = Vec::with_capacity(d.len());
+    let scan_steps = if scan { -3..=3 } else { 0..=0 };
+    for k in scan_steps {
+        let delta = f64::from(k) * SCAN_STEP_MODULES;
+        let (w, dk, c) = levels_and_cost(runs, d, intensity, delta, sigma0, &mut buffer);
         let p = Vector4::new(delta, sigma0, w, dk);
-        let c = cost(runs, d, intensity, &p);
         if best.as_ref().is_none_or(|(bc, _)| c < *bc) {
             best = Some((c, p));
         }
     }
     let (mut c, mut p) = best?;
     let mut lambda = 1e-3;
-    for _ in 0..LM_ITERATIONS {
+    let iterations = if scan {
+        LM_ITERATIONS_AFTER_SCAN
+    } else {
+        LM_ITERATIONS
+    };
+    for _ in 0..iterations {
         let mut jtj = Matrix4::<f64>::zeros();
         let mut jtr = Vector4::<f64>::zeros();
         for (&x, &i) in d.iter().zip(intensity) {
@@ -161,7 +263,7 @@ pub fn fit_profile(
             q[1] = q[1].clamp(0.02, 3.0);
             let cq = cost(runs, d, intensity, &q);
             if cq < c {
-                improved = step[0].abs() > 1e-5;
+                improved = step[0].abs() > MIN_STEP_MODULES;
                 p = q;
                 c = cq;
                 lambda = (lambda * 0.3).max(1e-9);
@@ -217,16 +319,33 @@ mod tests {
             let intensity: Vec<f64> = d
                 .iter()
                 .map(|&x| {
-                    let (s, _, _) = darkness(&runs, x, true_delta, sigma);
+                    let s: f64 = runs
+                        .iter()
+                        .map(|r| {
+                            cdf_exact((x - r.start - true_delta) / sigma)
+                                - cdf_exact((x - r.end - true_delta) / sigma)
+                        })
+                        .sum();
                     220.0 + (30.0 - 220.0) * s
                 })
                 .collect();
-            let fit = fit_profile(&runs, &d, &intensity, 0.5).expect("fits");
+            // As the refinement does it: a scanning pass from the rough start, then a full
+            // fit around the edge that pass found (the profile recentred there).
+            let coarse = fit_profile(&runs, &d, &intensity, 0.5, true).expect("fits");
             assert!(
-                (fit.delta - true_delta).abs() < 1e-3,
-                "δ {} vs {true_delta} at σ {sigma}",
-                fit.delta
+                (coarse.delta - true_delta).abs() < 0.1,
+                "coarse δ {} vs {true_delta} at σ {sigma}",
+                coarse.delta
             );
+            let recentred: Vec<f64> = d.iter().map(|x| x - coarse.delta).collect();
+            let fine =
+                fit_profile(&runs, &recentred, &intensity, coarse.sigma, false).expect("fits");
+            let delta = coarse.delta + fine.delta;
+            assert!(
+                (delta - true_delta).abs() < 1e-3,
+                "δ {delta} vs {true_delta} at σ {sigma}"
+            );
+            let fit = fine;
             assert!(
                 (fit.sigma - sigma).abs() < 1e-2,
                 "σ {} vs {sigma}",
@@ -239,7 +358,20 @@ mod tests {
     fn refuses_a_flat_profile() {
         let d: Vec<f64> = (0..20).map(|k| -2.5 + 0.25 * f64::from(k)).collect();
         let flat = vec![128.0; 20];
-        assert!(fit_profile(&finder_runs(), &d, &flat, 0.5).is_none());
+        assert!(fit_profile(&finder_runs(), &d, &flat, 0.5, true).is_none());
+    }
+
+    #[test]
+    fn tabulated_normal_matches_the_exact_functions() {
+        for k in -2000..=2000 {
+            let z = f64::from(k) * 0.00437;
+            let (c, p) = normal(z);
+            assert!((c - cdf_exact(z)).abs() < 1e-6, "Φ({z})");
+            assert!((p - pdf_exact(z)).abs() < 1e-6, "φ({z})");
+        }
+        assert_eq!(normal(-1e3), (0.0, 0.0));
+        assert_eq!(normal(1e3), (1.0, 0.0));
+        assert_eq!(normal(f64::NAN), (0.0, 0.0));
     }
 
     #[test]
