@@ -1,8 +1,8 @@
 //! `POST /v1/pose/image` and `qrpose estimate --image`: one photo in, every QR code's
 //! payload, sub-pixel corners and pose out.
 //!
-//! [`estimate_image`] is CPU-bound and synchronous (the HTTP layer runs it in
-//! `spawn_blocking`). Its request comes as JSON ([`ImageRequest`], the multipart `request`
+//! [`estimate_image`] is CPU-bound and synchronous (the HTTP layer runs it on its
+//! bounded worker queue, `http::queue`). Its request comes as JSON ([`ImageRequest`], the multipart `request`
 //! part) or as flat query parameters ([`ImageQuery`], for a raw image body) and is
 //! validated before the image is decoded.
 //!

@@ -332,6 +332,14 @@ mod tests {
                     assert_eq!(p.code, code, "{name}: {p:?}");
                     assert_eq!(p.field.as_deref(), Some(field), "{name}: {p:?}");
                     assert_eq!(p.status, code.status(), "{name}");
+                    if matches!(
+                        code,
+                        ErrorCode::InvalidCameraParameter | ErrorCode::SolverParameterOutOfRange
+                    ) {
+                        // The detail names the parameter as the API spells it.
+                        let leaf = field.rsplit('/').next().unwrap_or(field);
+                        assert!(p.detail.contains(leaf), "{name}: {}", p.detail);
+                    }
                     assert!(
                         (400..500).contains(&p.status),
                         "{name}: status {}",

@@ -8,7 +8,7 @@
 use super::problem::{ErrorCode, Problem};
 use crate::estimate::{
     DEFAULT_CORNER_SIGMA_PX, DEFAULT_GAIN, DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE_MM,
-    EstimateError, EstimatorParams, MAX_ITERATIONS_LIMIT, Method, SolverParam,
+    EstimateError, EstimatorParams, MAX_ITERATIONS_LIMIT, Method,
 };
 use crate::geometry::{
     camera::{Camera, CameraError, CameraParam, Distortion},
@@ -236,19 +236,12 @@ pub struct PoseSetup {
     pub mm_per_px: Option<f64>,
 }
 
-fn camera_param_name(param: CameraParam) -> &'static str {
-    match param {
-        CameraParam::FxPx => "fx_px",
-        CameraParam::FyPx => "fy_px",
-        CameraParam::CxPx => "cx_px",
-        CameraParam::CyPx => "cy_px",
-        CameraParam::FocalLengthMm => "focal_length_mm",
-        CameraParam::PixelSizeUm => "pixel_size_um",
-        CameraParam::K1 => "distortion/k1",
-        CameraParam::K2 => "distortion/k2",
-        CameraParam::P1 => "distortion/p1",
-        CameraParam::P2 => "distortion/p2",
-        CameraParam::K3 => "distortion/k3",
+/// The JSON pointer of a camera parameter below the camera object.
+fn camera_param_name(param: CameraParam) -> String {
+    if param.is_distortion() {
+        format!("distortion/{param}")
+    } else {
+        param.name().to_owned()
     }
 }
 
@@ -356,16 +349,6 @@ impl CameraDto {
     }
 }
 
-fn solver_param_name(param: SolverParam) -> &'static str {
-    match param {
-        SolverParam::InitialZMm => "initial_z_mm",
-        SolverParam::Gain => "gain",
-        SolverParam::ToleranceMm => "tolerance_mm",
-        SolverParam::MaxIterations => "max_iterations",
-        SolverParam::CornerSigmaPx => "corner_sigma_px",
-    }
-}
-
 impl SolverDto {
     /// The validated solver parameters.
     ///
@@ -410,7 +393,7 @@ pub fn problem_from_estimate_error(err: EstimateError, corners_pointer: &str) ->
             min_exclusive,
             max,
         } => {
-            let name = solver_param_name(param);
+            let name = param.name();
             Problem::new(
                 ErrorCode::SolverParameterOutOfRange,
                 format!(

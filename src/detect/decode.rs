@@ -18,6 +18,7 @@ use image::ImageDecoder;
 use std::io::Cursor;
 use thiserror::Error;
 use zune_jpeg::JpegDecoder;
+use zune_jpeg::errors::DecodeErrors as JpegDecodeError;
 use zune_jpeg::zune_core::bytestream::ZCursor;
 use zune_jpeg::zune_core::colorspace::ColorSpace;
 use zune_jpeg::zune_core::options::DecoderOptions;
@@ -235,7 +236,8 @@ pub fn declared_dimensions(bytes: &[u8]) -> Result<(u64, u64), DecodeError> {
     let format = sniff_format(bytes).ok_or(DecodeError::UnsupportedFormat)?;
     contained(format, || match format {
         ImageFormat::Jpeg => {
-            let mut decoder = JpegDecoder::new_with_options(ZCursor::new(bytes), jpeg_options());
+            let mut decoder =
+                JpegDecoder::new_with_options(ZCursor::new(bytes), jpeg_options(false));
             decoder
                 .decode_headers()
                 .map_err(|e| corrupt(format, format!("{e:?}")))?;
@@ -267,11 +269,12 @@ fn png_dimensions(bytes: &[u8]) -> Result<(u64, u64), DecodeError> {
 
 /// zune-jpeg options: luma out, and its own size guard opened to the JPEG maximum so that
 /// [`DecodeLimits`] alone decides.
-fn jpeg_options() -> DecoderOptions {
+fn jpeg_options(strict: bool) -> DecoderOptions {
     DecoderOptions::default()
         .jpeg_set_out_colorspace(ColorSpace::Luma)
         .set_max_width(usize::from(u16::MAX))
         .set_max_height(usize::from(u16::MAX))
+        .set_strict_mode(strict)
 }
 
 fn image_reader(bytes: &[u8], format: ImageFormat) -> image::ImageReader<Cursor<&[u8]>> {
@@ -306,23 +309,44 @@ pub fn decode_gray(bytes: &[u8], limits: &DecodeLimits) -> Result<GrayImage, Dec
     })
 }
 
+/// Luma straight from zune-jpeg. Strict mode first: lenient zune-jpeg fills the rows of a
+/// truncated scan with grey and reports success, and a code cut in half must not come back
+/// as a pose. Data that strict mode rejects for anything but running out (extra bytes
+/// between headers, a stray marker: common in camera files) is decoded again leniently.
 fn decode_jpeg_luma(bytes: &[u8]) -> Result<GrayImage, DecodeError> {
-    let format = ImageFormat::Jpeg;
-    let mut decoder = JpegDecoder::new_with_options(ZCursor::new(bytes), jpeg_options());
-    decoder
-        .decode_headers()
-        .map_err(|e| corrupt(format, format!("{e:?}")))?;
+    match decode_jpeg_with(bytes, true) {
+        Err(e) if is_truncation(&e) => Err(corrupt(
+            ImageFormat::Jpeg,
+            format!("the data ends before the image does ({e})"),
+        )),
+        Err(_) => decode_jpeg_with(bytes, false).map_err(|e| corrupt(ImageFormat::Jpeg, e)),
+        Ok(image) => Ok(image),
+    }
+}
+
+/// Whether zune-jpeg ran out of data, as opposed to rejecting some other part of the file.
+fn is_truncation(e: &JpegDecodeError) -> bool {
+    match e {
+        JpegDecodeError::ExhaustedData => true,
+        JpegDecodeError::FormatStatic(msg) => msg.to_ascii_lowercase().contains("premature"),
+        _ => false,
+    }
+}
+
+/// Decodes with zune-jpeg, strict or lenient; errors other than zune-jpeg's own (size
+/// mismatch) come back as [`JpegDecodeError::Format`].
+fn decode_jpeg_with(bytes: &[u8], strict: bool) -> Result<GrayImage, JpegDecodeError> {
+    let mut decoder = JpegDecoder::new_with_options(ZCursor::new(bytes), jpeg_options(strict));
+    decoder.decode_headers()?;
     let (w, h) = decoder
         .dimensions()
-        .ok_or_else(|| corrupt(format, "no frame header"))?;
+        .ok_or(JpegDecodeError::FormatStatic("no frame header"))?;
     let size = decoder
         .output_buffer_size()
-        .ok_or_else(|| corrupt(format, "size overflows"))?;
+        .ok_or(JpegDecodeError::FormatStatic("size overflows"))?;
     let mut pixels = vec![0u8; size];
-    decoder
-        .decode_into(&mut pixels)
-        .map_err(|e| corrupt(format, format!("{e:?}")))?;
-    GrayImage::new(w, h, pixels).ok_or_else(|| corrupt(format, "decoded size mismatch"))
+    decoder.decode_into(&mut pixels)?;
+    GrayImage::new(w, h, pixels).ok_or(JpegDecodeError::FormatStatic("decoded size mismatch"))
 }
 
 fn decode_with_image(
@@ -483,6 +507,56 @@ mod tests {
                 Err(DecodeError::Corrupt { format: f, .. }) => assert_eq!(f, format, "{name}"),
                 other => panic!("{name}: {other:?}"),
             }
+        }
+    }
+
+    /// A textured JPEG (every 8 × 8 block differs, so every part of the scan carries data).
+    fn textured_jpeg(width: u32, height: u32) -> Vec<u8> {
+        let img = image::GrayImage::from_fn(width, height, |x, y| {
+            image::Luma([((x * 7 + y * 13 + (x / 8) * (y / 8) * 31) % 251) as u8])
+        });
+        let mut out = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 90)
+            .encode_image(&img)
+            .expect("jpeg encodes");
+        out
+    }
+
+    #[test]
+    fn a_jpeg_cut_anywhere_in_its_scan_is_corrupt_not_grey() {
+        let limits = DecodeLimits::default();
+        let jpeg = textured_jpeg(320, 240);
+        assert!(decode_gray(&jpeg, &limits).is_ok());
+        for share in [0.3, 0.5, 0.8, 0.95, 0.99] {
+            let cut = &jpeg[..(jpeg.len() as f64 * share) as usize];
+            match decode_gray(cut, &limits) {
+                Err(DecodeError::Corrupt { format, reason }) => {
+                    assert_eq!(format, "jpeg");
+                    assert!(reason.contains("ends before"), "{share}: {reason}");
+                }
+                other => panic!("cut at {share}: {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn a_jpeg_with_extra_bytes_between_headers_still_decodes() {
+        // Strict zune-jpeg rejects garbage between segments; cameras write such files and
+        // the lenient retry reads them.
+        let jpeg = textured_jpeg(64, 48);
+        // After the first segment (SOI, then a marker and its big-endian length).
+        let first_end = 4 + usize::from(u16::from_be_bytes([jpeg[4], jpeg[5]]));
+        let mut odd = jpeg[..first_end].to_vec();
+        odd.extend_from_slice(&[0x00, 0x11, 0x22]);
+        odd.extend_from_slice(&jpeg[first_end..]);
+        assert!(
+            decode_jpeg_with(&odd, true).is_err(),
+            "strict mode rejects it"
+        );
+        let clean = decode_gray(&jpeg, &DecodeLimits::default()).expect("clean decodes");
+        match decode_gray(&odd, &DecodeLimits::default()) {
+            Ok(decoded) => assert!(decoded.pixels() == clean.pixels(), "pixels differ"),
+            Err(e) => panic!("extra bytes: {e:?}"),
         }
     }
 

@@ -112,6 +112,26 @@ pub enum SolverParam {
     CornerSigmaPx,
 }
 
+impl SolverParam {
+    /// The parameter's name as the API spells it.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::InitialZMm => "initial_z_mm",
+            Self::Gain => "gain",
+            Self::ToleranceMm => "tolerance_mm",
+            Self::MaxIterations => "max_iterations",
+            Self::CornerSigmaPx => "corner_sigma_px",
+        }
+    }
+}
+
+impl std::fmt::Display for SolverParam {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Solver settings. Build with [`EstimatorParams::default`] and the `with_*` setters.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EstimatorParams {
@@ -234,7 +254,7 @@ impl EstimatorParams {
 #[derive(Debug, Clone, Copy, PartialEq, Error)]
 pub enum EstimateError {
     /// A solver parameter is outside its range (or not finite): refused rather than run.
-    #[error("solver parameter {param:?} = {value} is outside ({min_exclusive}, {max}]")]
+    #[error("solver parameter {param} = {value} is outside ({min_exclusive}, {max}]")]
     ParamOutOfRange {
         /// The parameter.
         param: SolverParam,

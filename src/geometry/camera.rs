@@ -57,17 +57,49 @@ pub enum CameraParam {
     K3,
 }
 
+impl CameraParam {
+    /// The parameter's name as the API spells it (`fx_px`, `k1`, …).
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::FxPx => "fx_px",
+            Self::FyPx => "fy_px",
+            Self::CxPx => "cx_px",
+            Self::CyPx => "cy_px",
+            Self::FocalLengthMm => "focal_length_mm",
+            Self::PixelSizeUm => "pixel_size_um",
+            Self::K1 => "k1",
+            Self::K2 => "k2",
+            Self::P1 => "p1",
+            Self::P2 => "p2",
+            Self::K3 => "k3",
+        }
+    }
+
+    /// Whether it is a distortion coefficient (under `distortion` in the API).
+    #[must_use]
+    pub const fn is_distortion(self) -> bool {
+        matches!(self, Self::K1 | Self::K2 | Self::P1 | Self::P2 | Self::K3)
+    }
+}
+
+impl std::fmt::Display for CameraParam {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Why a camera was refused, or a pixel could not be turned into a ray.
 #[derive(Debug, Clone, Copy, PartialEq, Error)]
 pub enum CameraError {
     /// A parameter is NaN or infinite: nothing can be computed from it.
-    #[error("camera parameter {param:?} is not a finite number")]
+    #[error("camera parameter {param} is not a finite number")]
     NonFinite {
         /// The parameter at fault.
         param: CameraParam,
     },
     /// A focal length or pixel size is zero or negative: the pinhole model has no meaning.
-    #[error("camera parameter {param:?} must be positive, got {value}")]
+    #[error("camera parameter {param} must be positive, got {value}")]
     NonPositive {
         /// The parameter at fault.
         param: CameraParam,

@@ -118,6 +118,8 @@ fn catalogue() -> Vec<Case> {
     random_after_jpeg_magic.extend_from_slice(&random);
     // Cut inside the header segments (quantisation and Huffman tables).
     let truncated_in_headers = jpeg[..300].to_vec();
+    // Cut inside the entropy-coded scan: a lenient decoder paints the rest grey.
+    let truncated_in_scan = jpeg[..jpeg.len() * 7 / 10].to_vec();
     let mut cases = vec![
         raw("empty body", "&", Vec::new(), JPEG, UndecodableImage, None),
         raw(
@@ -140,6 +142,14 @@ fn catalogue() -> Vec<Case> {
             "JPEG truncated in its headers",
             "&",
             truncated_in_headers,
+            JPEG,
+            UndecodableImage,
+            None,
+        ),
+        raw(
+            "JPEG truncated in its scan",
+            "&",
+            truncated_in_scan,
             JPEG,
             UndecodableImage,
             None,
