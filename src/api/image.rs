@@ -2,9 +2,9 @@
 //! payload, sub-pixel corners and pose out.
 //!
 //! [`estimate_image`] is CPU-bound and synchronous (the HTTP layer runs it on its
-//! bounded worker queue, `http::queue`). Its request comes as JSON ([`ImageRequest`], the multipart `request`
-//! part) or as flat query parameters ([`ImageQuery`], for a raw image body) and is
-//! validated before the image is decoded.
+//! bounded worker queue, `http::queue`). Its request comes as JSON ([`ImageRequest`], the
+//! multipart `request` part) or as flat query parameters ([`ImageQuery`], for a raw image
+//! body) and is validated before the image is decoded.
 //!
 //! Decisions a client should know:
 //! - No code found is a success with `markers: []`.
