@@ -3,6 +3,10 @@
 //! The level comes from `RUST_LOG` (default `info`). Every line written while a request is
 //! handled carries the request's span: `request_id`, `method` and `path` (see
 //! `http::middleware`). Tests stay quiet unless they install a subscriber themselves.
+//!
+//! [`log_panics`] sends panics to the same log: the decoders and detectors run under
+//! `catch_unwind` (rqrr panics on some real photos, upstream issue #54), and the default
+//! hook would print a multi-line message to standard error in the middle of JSON logs.
 
 use crate::config::LogFormat;
 use std::io::IsTerminal;
@@ -58,4 +62,46 @@ where
             .try_init()?,
     }
     Ok(())
+}
+
+/// Replaces the panic hook with one that logs the panic as one `error` event (message and
+/// location, inside the current request's span) instead of printing it to standard error.
+/// Panics stay contained where they were (`catch_unwind` in the detectors and the worker
+/// queue); this only changes where the report goes.
+pub fn log_panics() {
+    std::panic::set_hook(Box::new(|info| {
+        let location = info
+            .location()
+            .map(|l| format!("{}:{}", l.file(), l.line()));
+        tracing::error!(
+            location = location.as_deref().unwrap_or("unknown"),
+            "contained panic: {}",
+            panic_message(info.payload())
+        );
+    }));
+}
+
+/// The text of a panic payload (`panic!` gives a `&str` or a `String`).
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
+    payload
+        .downcast_ref::<&str>()
+        .copied()
+        .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+        .unwrap_or("(no message)")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::panic_message;
+
+    #[test]
+    fn panic_payloads_give_their_text() {
+        let literal = std::panic::catch_unwind(|| panic!("plain")).expect_err("panics");
+        assert_eq!(panic_message(literal.as_ref()), "plain");
+        let n = 7;
+        let formatted = std::panic::catch_unwind(|| panic!("value {n}")).expect_err("panics");
+        assert_eq!(panic_message(formatted.as_ref()), "value 7");
+        let other = std::panic::catch_unwind(|| std::panic::panic_any(42_u8)).expect_err("panics");
+        assert_eq!(panic_message(other.as_ref()), "(no message)");
+    }
 }

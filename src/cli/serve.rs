@@ -64,6 +64,7 @@ pub fn run(args: ServeArgs) -> ExitCode {
         eprintln!("qrpose serve: {e}");
         return ExitCode::FAILURE;
     }
+    qrpose::telemetry::log_panics();
     let runtime = match tokio::runtime::Builder::new_multi_thread()
         .worker_threads(settings.worker_threads.get())
         .enable_all()
