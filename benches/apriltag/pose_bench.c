@@ -2,9 +2,10 @@
 // `cargo run --release --example corner_accuracy` (target/accuracy/corners.csv).
 // Built and run by scripts/bench_apriltag_pose.sh.
 //
-//   pose_bench CORNERS.csv [POSES_OUT.csv]   times both methods, prints
+//   pose_bench CORNERS.csv [POSES_OUT.csv [--no-timing]]
+//                                            times both methods, prints
 //                                            "<method> <median ns per call> <calls per round>",
-//                                            and (with POSES_OUT) writes every pose.
+//                                            and (with POSES_OUT) writes every pose first.
 //   pose_bench --exact CORNERS.csv           round trip on exact corners projected from the true
 //                                            poses: prints the largest rotation / position error.
 //
@@ -172,7 +173,7 @@ static void nearest_rotation(const double M[9], double R[9]) {
         }
     for (int sweep = 0; sweep < 30; sweep++) {
         double off = fabs(A[1]) + fabs(A[2]) + fabs(A[5]);
-        if (off < 1e-300) break;
+        if (off <= 1e-15 * (fabs(A[0]) + fabs(A[4]) + fabs(A[8]))) break;
         for (int p = 0; p < 2; p++)
             for (int q = p + 1; q < 3; q++) {
                 double apq = A[3 * p + q];
@@ -357,6 +358,7 @@ int main(int argc, char** argv) {
                 fprintf(out, ",%.17g,%.17g,%.17g\n", t[0], t[1], t[2]);
             }
         fclose(out);
+        if (argc > 3 && strcmp(argv[3], "--no-timing") == 0) return 0;
     }
 
     // OpenCV's bench uses 15 rounds after 2 warm-up rounds; estimate_tag_pose costs ~1 ms a call,
