@@ -77,9 +77,8 @@ pub fn side_errors_mm(rays: &[NormalizedPoint; 4], z_mm: &[f64; 4], marker: &Mar
 /// One simultaneous update of all four depths (Eq. 12).
 fn updated_depths(z_mm: &[f64; 4], e: &[f64; 6], gain: f64) -> [f64; 4] {
     let mut next = *z_mm;
-    let gain_per_edge = gain / 3.0;
     for (z, incident) in next.iter_mut().zip(&INCIDENT_EDGES) {
-        *z += gain_per_edge * (e[incident[0]] + e[incident[1]] + e[incident[2]]);
+        *z += gain * (e[incident[0]] + e[incident[1]] + e[incident[2]]) / 3.0;
     }
     next
 }
