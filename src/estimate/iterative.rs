@@ -98,6 +98,9 @@ pub fn iterate(
     marker: &Marker,
     params: &PaperParams,
 ) -> DepthIteration {
+    if !params.trace {
+        return iterate_untraced(rays, marker, params);
+    }
     let mut z = [params.initial_z_mm; 4];
     let mut trace = params.trace.then(Vec::new);
     let mut last_e_c = None;
@@ -135,6 +138,41 @@ pub fn iterate(
         iterations,
         convergence_error_mm: last_e_c,
         trace,
+    }
+}
+
+/// [`iterate`] without a trace: the same arithmetic in the same order (so the same iterates
+/// to the bit), with the depths kept in registers rather than in the trace's reach.
+fn iterate_untraced(
+    rays: &[NormalizedPoint; 4],
+    marker: &Marker,
+    params: &PaperParams,
+) -> DepthIteration {
+    let mut z = [params.initial_z_mm; 4];
+    let mut last_e_c = None;
+    let mut iterations = 0;
+    let mut converged = false;
+    for n in 1..=params.max_iterations {
+        let e = side_errors_mm(rays, &z, marker);
+        let z_next = updated_depths(&z, &e, params.gain);
+        let e_c = convergence_error_mm(&z_next, &z);
+        if !e_c.is_finite() {
+            break;
+        }
+        z = z_next;
+        iterations = n;
+        last_e_c = Some(e_c);
+        if e_c <= params.tolerance_mm {
+            converged = true;
+            break;
+        }
+    }
+    DepthIteration {
+        z_mm: z,
+        converged,
+        iterations,
+        convergence_error_mm: last_e_c,
+        trace: None,
     }
 }
 
