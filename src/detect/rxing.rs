@@ -3,14 +3,20 @@
 //! one ([`RxingDetector::global_histogram`], for `auto`'s second passes). Corners are whole pixels; the
 //! module count is not reported and is measured by [`super::corners`]. rxing lists the
 //! corners as TL, TR, BL, BR (checked on rendered ground truth); they are reordered here.
+//!
+//! The hybrid binariser is rxing's algorithm reimplemented ([`LocalBinarizer`]): the same
+//! bits (a test compares them), faster: rxing sets the matrix one bit at a time, which was
+//! the largest share of its read of a 1280 × 720 frame (3.3 ms with rxing's binariser,
+//! about 1.6 ms with this one, one core).
 
 use super::decode::GrayImage;
 use super::{Backend, Candidate, Detector};
 use crate::geometry::frames::PixelPoint;
-use rxing::common::{GlobalHistogramBinarizer, HybridBinarizer};
+use rxing::common::{BitArray, BitMatrix, GlobalHistogramBinarizer, LineOrientation};
 use rxing::multi::MultipleBarcodeReader;
 use rxing::qrcode::cpp_port::QrReader;
-use rxing::{BarcodeFormat, Binarizer, BinaryBitmap, DecodeHints, Luma8Source};
+use rxing::{BarcodeFormat, Binarizer, BinaryBitmap, DecodeHints, Luma8Source, LuminanceSource};
+use std::borrow::Cow;
 use std::collections::HashSet;
 
 /// rxing behind the [`Detector`] interface.
@@ -45,7 +51,7 @@ fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Vec<Candidate>
     if global_histogram {
         read(BinaryBitmap::new(GlobalHistogramBinarizer::new(source)))
     } else {
-        read(BinaryBitmap::new(HybridBinarizer::new(source)))
+        read(BinaryBitmap::new(LocalBinarizer::new(source)))
     }
 }
 
@@ -81,6 +87,186 @@ fn read<B: Binarizer>(mut bitmap: BinaryBitmap<B>) -> Vec<Candidate> {
         .collect()
 }
 
+/// Side of the blocks of the local binariser, px.
+const BLOCK_PX: usize = 8;
+/// Blocks with at most this grey-level range get a threshold from their neighbours.
+const MIN_DYNAMIC_RANGE: u8 = 24;
+/// Bits per word of rxing's bit arrays.
+const WORD_BITS: usize = usize::BITS as usize;
+
+/// rxing's `HybridBinarizer` (ZXing's local block thresholding), bit for bit: a black point
+/// per 8 × 8 block, each block thresholded at the mean black point of the 5 × 5 blocks
+/// around it. rxing sets the matrix one bit at a time; here each pixel's threshold is
+/// written into a plane first (the largest threshold of the blocks covering it: the last
+/// block of a row or column overlaps its neighbour, and a pixel that either block calls
+/// black is black) and the bits are packed a word at a time. Row queries (1-D readers)
+/// and images under 40 px go to the global-histogram binariser, as in rxing.
+pub struct LocalBinarizer<LS: LuminanceSource> {
+    ghb: GlobalHistogramBinarizer<LS>,
+    matrix: Option<BitMatrix>,
+}
+
+impl<LS: LuminanceSource> LocalBinarizer<LS> {
+    /// Binarises `source` at once.
+    pub fn new(source: LS) -> Self {
+        let (width, height) = (source.get_width(), source.get_height());
+        let matrix = local_threshold(&source.get_matrix(), width, height);
+        Self {
+            ghb: GlobalHistogramBinarizer::new(source),
+            matrix,
+        }
+    }
+}
+
+/// The black points of the blocks, row-major (`sub_w` × `sub_h`).
+fn black_points(lum: &[u8], width: usize, height: usize, sub_w: usize, sub_h: usize) -> Vec<u32> {
+    let (max_x, max_y) = (width - BLOCK_PX, height - BLOCK_PX);
+    let mut points = vec![0u32; sub_w * sub_h];
+    for by in 0..sub_h {
+        let y0 = (by * BLOCK_PX).min(max_y);
+        for bx in 0..sub_w {
+            let x0 = (bx * BLOCK_PX).min(max_x);
+            let (mut sum, mut min, mut max) = (0u32, u8::MAX, u8::MIN);
+            for r in 0..BLOCK_PX {
+                let start = (y0 + r) * width + x0;
+                let Some(eight) = lum.get(start..start + BLOCK_PX) else {
+                    continue;
+                };
+                for &p in eight {
+                    sum += u32::from(p);
+                    min = min.min(p);
+                    max = max.max(p);
+                }
+            }
+            // rxing stops tracking min and max once the range exceeds the limit; the test
+            // below only asks whether it did, so the full range decides the same.
+            let mut average = sum >> 6;
+            if max - min <= MIN_DYNAMIC_RANGE {
+                average = u32::from(min) / 2;
+                if by > 0 && bx > 0 {
+                    let neighbours = (points[(by - 1) * sub_w + bx]
+                        + 2 * points[by * sub_w + bx - 1]
+                        + points[(by - 1) * sub_w + bx - 1])
+                        / 4;
+                    if u32::from(min) < neighbours {
+                        average = neighbours;
+                    }
+                }
+            }
+            points[by * sub_w + bx] = average;
+        }
+    }
+    points
+}
+
+/// The local-threshold bit matrix; `None` for images under 5 blocks on a side.
+fn local_threshold(lum: &[u8], width: usize, height: usize) -> Option<BitMatrix> {
+    if width < 5 * BLOCK_PX || height < 5 * BLOCK_PX || lum.len() != width * height {
+        return None;
+    }
+    let (sub_w, sub_h) = (width.div_ceil(BLOCK_PX), height.div_ceil(BLOCK_PX));
+    let (max_x, max_y) = (width - BLOCK_PX, height - BLOCK_PX);
+    let points = black_points(lum, width, height, sub_w, sub_h);
+    let mut threshold = vec![0u8; width * height];
+    for by in 0..sub_h {
+        let y0 = (by * BLOCK_PX).min(max_y);
+        let top = by.clamp(2, sub_h - 3);
+        for bx in 0..sub_w {
+            let x0 = (bx * BLOCK_PX).min(max_x);
+            let left = bx.clamp(2, sub_w - 3);
+            let sum: u32 = (top - 2..=top + 2)
+                .map(|z| {
+                    points[z * sub_w + left - 2..=z * sub_w + left + 2]
+                        .iter()
+                        .sum::<u32>()
+                })
+                .sum();
+            // Black points are grey levels, so is their mean; were one larger, every pixel
+            // would be at or below it, as at 255.
+            let t = u8::try_from(sum / 25).unwrap_or(u8::MAX);
+            for row in threshold[y0 * width..].chunks_mut(width).take(BLOCK_PX) {
+                for v in &mut row[x0..x0 + BLOCK_PX] {
+                    *v = (*v).max(t);
+                }
+            }
+        }
+    }
+    let mut matrix =
+        BitMatrix::new(u32::try_from(width).ok()?, u32::try_from(height).ok()?).ok()?;
+    let mut bits = BitArray::with_size(width);
+    let mut black = vec![0u8; width.next_multiple_of(WORD_BITS)];
+    for (y, (lum_row, t_row)) in lum
+        .chunks_exact(width)
+        .zip(threshold.chunks_exact(width))
+        .enumerate()
+    {
+        for ((b, &p), &t) in black.iter_mut().zip(lum_row).zip(t_row) {
+            *b = u8::from(p <= t);
+        }
+        for (w, chunk) in black.chunks_exact(WORD_BITS).enumerate() {
+            // Eight 0/1 bytes to eight bits (bit k = byte k) by one multiplication.
+            let word = chunk
+                .chunks_exact(8)
+                .enumerate()
+                .fold(0usize, |acc, (k, eight)| {
+                    let mut le = [0u8; 8];
+                    le.copy_from_slice(eight);
+                    let byte = u64::from_le_bytes(le).wrapping_mul(0x0102_0408_1020_4080) >> 56;
+                    acc | (usize::try_from(byte).unwrap_or(0) << (8 * k))
+                });
+            bits.setBulk(w * WORD_BITS, word);
+        }
+        matrix.setRow(u32::try_from(y).ok()?, &bits);
+    }
+    Some(matrix)
+}
+
+impl<LS: LuminanceSource> Binarizer for LocalBinarizer<LS> {
+    type Source = LS;
+
+    fn get_luminance_source(&self) -> &LS {
+        self.ghb.get_luminance_source()
+    }
+
+    fn get_black_row(&self, y: usize) -> rxing::common::Result<Cow<'_, BitArray>> {
+        self.ghb.get_black_row(y)
+    }
+
+    fn get_black_row_from_matrix(&self, y: usize) -> rxing::common::Result<Cow<'_, BitArray>> {
+        match (&self.matrix, u32::try_from(y)) {
+            (Some(m), Ok(y)) => Ok(Cow::Owned(m.getRow(y))),
+            _ => self.get_black_row(y),
+        }
+    }
+
+    fn get_black_matrix(&self) -> rxing::common::Result<&BitMatrix> {
+        match &self.matrix {
+            Some(m) => Ok(m),
+            None => self.ghb.get_black_matrix(),
+        }
+    }
+
+    fn get_black_line(
+        &self,
+        l: usize,
+        lt: LineOrientation,
+    ) -> rxing::common::Result<Cow<'_, BitArray>> {
+        self.ghb.get_black_line(l, lt)
+    }
+
+    fn create_binarizer(&self, source: LS) -> Self {
+        Self::new(source)
+    }
+
+    fn get_width(&self) -> usize {
+        self.ghb.get_width()
+    }
+
+    fn get_height(&self) -> usize {
+        self.ghb.get_height()
+    }
+}
+
 impl Detector for RxingDetector {
     fn backend(&self) -> Backend {
         Backend::Rxing
@@ -91,5 +277,47 @@ impl Detector for RxingDetector {
             detect_unguarded(image, self.global_histogram)
         }))
         .unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rxing::common::HybridBinarizer;
+
+    /// A textured, unevenly lit image with flat patches (the neighbour rule) and sizes that
+    /// are not multiples of the block (the overlapping last blocks).
+    fn test_image(width: usize, height: usize) -> Vec<u8> {
+        (0..width * height)
+            .map(|k| {
+                let (x, y) = (k % width, k / width);
+                if (x / 13 + y / 17) % 5 == 0 {
+                    return u8::try_from(60 + (x + y) % 7).unwrap_or(0);
+                }
+                let v = (x * 37 + y * 91 + (x / 5) * (y / 3) * 13) % 251;
+                u8::try_from((v + x / 4) % 256).unwrap_or(0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn local_binarizer_matches_rxings_hybrid_bit_for_bit() {
+        for (w, h) in [(64, 48), (101, 77), (640, 360), (333, 517), (39, 80)] {
+            let pixels = test_image(w, h);
+            let (wu, hu) = (u32::try_from(w).unwrap_or(0), u32::try_from(h).unwrap_or(0));
+            let ours =
+                LocalBinarizer::new(Luma8Source::new_with_slice(&pixels, wu, hu).expect("source"));
+            let theirs =
+                HybridBinarizer::new(Luma8Source::new_with_slice(&pixels, wu, hu).expect("source"));
+            let (a, b) = (
+                ours.get_black_matrix().expect("ours"),
+                theirs.get_black_matrix().expect("theirs"),
+            );
+            for y in 0..hu {
+                for x in 0..wu {
+                    assert_eq!(a.get(x, y), b.get(x, y), "{w} × {h} at ({x}, {y})");
+                }
+            }
+        }
     }
 }
