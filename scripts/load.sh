@@ -11,7 +11,7 @@
 # Checks: zero errors (non-2xx answers or socket errors), corners rate >= 70 % of the
 # /healthz rate, RSS flat over the soak, and the image endpoint reading the photo's code.
 # Exit 0 when all hold, 1 otherwise. The image endpoint has no rate target: it is bound by
-# decoding and detection (about 26 ms of CPU per 1280x720 photo, docs/detection.md).
+# decoding and detection (about 6-7 ms of CPU per 1280x720 photo, docs/performance.md).
 #
 # Usage: scripts/load.sh            (installs wrk from Debian if missing; builds release)
 # Knobs: ROUNDS=3 DURATION_S=10 SOAK_S=60 CONNECTIONS=32 WRK_THREADS=2 TARGET_RATIO=0.70
