@@ -98,55 +98,23 @@ pub fn iterate(
     marker: &Marker,
     params: &PaperParams,
 ) -> DepthIteration {
-    if !params.trace {
-        return iterate_untraced(rays, marker, params);
-    }
-    let mut z = [params.initial_z_mm; 4];
-    let mut trace = params.trace.then(Vec::new);
-    let mut last_e_c = None;
-    let mut iterations = 0;
-    for n in 1..=params.max_iterations {
-        let e = side_errors_mm(rays, &z, marker);
-        let z_next = updated_depths(&z, &e, params.gain);
-        let e_c = convergence_error_mm(&z_next, &z);
-        if !e_c.is_finite() {
-            break;
-        }
-        z = z_next;
-        iterations = n;
-        last_e_c = Some(e_c);
-        if let Some(steps) = trace.as_mut() {
-            steps.push(TraceStep {
-                iteration: n,
-                z_mm: z,
-                convergence_error_mm: e_c,
-            });
-        }
-        if e_c <= params.tolerance_mm {
-            return DepthIteration {
-                z_mm: z,
-                converged: true,
-                iterations,
-                convergence_error_mm: last_e_c,
-                trace,
-            };
-        }
-    }
-    DepthIteration {
-        z_mm: z,
-        converged: false,
-        iterations,
-        convergence_error_mm: last_e_c,
-        trace,
+    if params.trace {
+        let mut steps = Vec::new();
+        let mut out = run(rays, marker, params, |step| steps.push(step));
+        out.trace = Some(steps);
+        out
+    } else {
+        // A no-op observer, monomorphised away: the depths stay in registers.
+        run(rays, marker, params, |_| {})
     }
 }
 
-/// [`iterate`] without a trace: the same arithmetic in the same order (so the same iterates
-/// to the bit), with the depths kept in registers rather than in the trace's reach.
-fn iterate_untraced(
+/// The loop of [`iterate`], handing every applied update to `on_step`; `trace` is `None`.
+fn run(
     rays: &[NormalizedPoint; 4],
     marker: &Marker,
     params: &PaperParams,
+    mut on_step: impl FnMut(TraceStep),
 ) -> DepthIteration {
     let mut z = [params.initial_z_mm; 4];
     let mut last_e_c = None;
@@ -162,6 +130,11 @@ fn iterate_untraced(
         z = z_next;
         iterations = n;
         last_e_c = Some(e_c);
+        on_step(TraceStep {
+            iteration: n,
+            z_mm: z,
+            convergence_error_mm: e_c,
+        });
         if e_c <= params.tolerance_mm {
             converged = true;
             break;
@@ -238,6 +211,41 @@ mod tests {
         assert!((out.convergence_error_mm.expect("one step") - 4.0 * step).abs() < 1e-9);
         assert_eq!(out.iterations, 1);
         assert!(!out.converged);
+    }
+
+    #[test]
+    fn tracing_does_not_change_the_iterates() {
+        let marker = Marker::try_new(50.0).expect("valid size");
+        for (alpha_deg, gain, max_iterations) in [(0.0, 1.0, 30), (35.0, 1.0, 30), (20.0, 0.7, 200)]
+        {
+            let pose = MarkerToCamera::new(
+                EulerXyz::from_degrees(alpha_deg, 10.0, 15.0).to_rotation(),
+                Vector3::new(60.0, -50.0, 300.0),
+            );
+            let rays = rays_for(&marker, &pose);
+            let traced_params = PaperParams {
+                max_iterations,
+                ..params(gain)
+            };
+            let traced = iterate(&rays, &marker, &traced_params);
+            let plain = iterate(
+                &rays,
+                &marker,
+                &PaperParams {
+                    trace: false,
+                    ..traced_params
+                },
+            );
+            assert_eq!(plain.trace, None);
+            assert_eq!(
+                DepthIteration {
+                    trace: None,
+                    ..traced
+                },
+                plain,
+                "α = {alpha_deg}°, k = {gain}"
+            );
+        }
     }
 
     #[test]
