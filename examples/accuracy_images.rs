@@ -7,8 +7,8 @@
 //!
 //! Renders `--count` photos (sizes 30-100 mm, distance 120-1200 mm with at least
 //! `MIN_MODULE_PX` px per module on every side of the projected symbol (`--module-rule
-//! distance`: only at a fronto-parallel view, the first set's rule), tilt up to 40°, any in-plane rotation, blur σ 0.4-1.4 px,
-//! noise σ 1-4 grey levels, uneven lighting, clutter, JPEG quality 70-95, 1280×720 and
+//! distance`: only at a fronto-parallel view, the first set's rule), tilt up to 40°, any
+//! in-plane rotation, blur σ 0.4-1.4 px, noise σ 1-4 grey levels, uneven lighting, clutter, JPEG quality 70-95, 1280×720 and
 //! 1920×1080 cameras), writes each as `DIR/NNNN.jpg` with `DIR/NNNN.json` (ground truth and
 //! camera), runs every backend built, and prints detected %, payload correct %, corner error
 //! (median, p90; raw backend corners and refined) and pose error (rotation °, centre
@@ -115,7 +115,6 @@ fn make_case(seed: u64, projected_rule: bool) -> Option<Case> {
         let ray = Vector3::new((u - camera.cx()) / f, (v - camera.cy()) / f, 1.0).normalize();
         let centre = ray * distance;
         let marker = Marker::try_new(size_mm).ok()?;
-        let t = centre - r * marker.centre().0.coords;
         let scene = Scene {
             payload: payload.as_bytes().to_vec(),
             ec_level,
@@ -123,7 +122,7 @@ fn make_case(seed: u64, projected_rule: bool) -> Option<Case> {
             camera,
             width_px: w,
             height_px: h,
-            pose: MarkerToCamera::new(r, t),
+            pose: marker.pose_centred_at(r, centre),
         };
         let Ok(truth) = ground_truth(&scene) else {
             continue;

@@ -8,7 +8,7 @@ use qrpose::api::problem::ErrorCode;
 use qrpose::detect::{
     Backend, DetectorChoice, decode::DecodeLimits, decode::decode_gray, detect_codes,
 };
-use qrpose::geometry::{camera::Camera, euler::EulerXyz, frames::MarkerToCamera, marker::Marker};
+use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
 use qrpose::render::{EcLevel, Effects, Encoding, Rendered, Scene, render};
 use serde_json::json;
 
@@ -31,7 +31,7 @@ fn scene(payload: &str, centre_mm: [f64; 3], euler_deg: [f64; 3]) -> Scene {
         camera: Camera::from_pixels(900.0, 900.0, 319.5, 239.5).expect("valid camera"),
         width_px: 640,
         height_px: 480,
-        pose: MarkerToCamera::new(r, centre - r * marker.centre().0.coords),
+        pose: marker.pose_centred_at(r, centre),
     }
 }
 
@@ -484,7 +484,7 @@ fn hd_frame(payload: &str, distance_mm: f64, blur_px: f64, seed: u64) -> Rendere
         camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("valid camera"),
         width_px: 1280,
         height_px: 720,
-        pose: MarkerToCamera::new(r, centre - r * marker.centre().0.coords),
+        pose: marker.pose_centred_at(r, centre),
     };
     let effects = Effects {
         supersample: 3,

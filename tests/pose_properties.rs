@@ -128,7 +128,7 @@ fn truth(s: &Scenario, camera: &Camera, marker: &Marker) -> MarkerToCamera {
         1.0,
     );
     let centre = ray.normalize() * s.distance_mm;
-    MarkerToCamera::new(r, centre - r * marker.centre().0.coords)
+    marker.pose_centred_at(r, centre)
 }
 
 fn solve(s: &Scenario, method: MethodDto) -> Result<(PoseResponse, MarkerToCamera), TestCaseError> {

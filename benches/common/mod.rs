@@ -3,7 +3,7 @@
 //! 30 clutter shapes, JPEG 85. About 4 px per module at f = 1000 px.
 
 use nalgebra::Vector3;
-use qrpose::geometry::{camera::Camera, euler::EulerXyz, frames::MarkerToCamera, marker::Marker};
+use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
 use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
 
 /// The frames measured: name, width px, height px, focal length px.
@@ -34,7 +34,7 @@ pub fn frame(width_px: u32, height_px: u32, f_px: f64) -> Vec<u8> {
         camera,
         width_px,
         height_px,
-        pose: MarkerToCamera::new(r, centre - r * marker.centre().0.coords),
+        pose: marker.pose_centred_at(r, centre),
     };
     let effects = Effects {
         blur_px: 0.8,

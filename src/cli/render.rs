@@ -4,7 +4,7 @@
 use super::estimate::{print_json, report_problem};
 use clap::Args;
 use qrpose::api::problem::{ErrorCode, Problem};
-use qrpose::geometry::{camera::Camera, euler::EulerXyz, frames::MarkerToCamera, marker::Marker};
+use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
 use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
 use serde_json::json;
 use std::path::PathBuf;
@@ -108,7 +108,6 @@ fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
     };
     let r = EulerXyz::from_degrees(args.alpha_deg, args.beta_deg, args.gamma_deg).to_rotation();
     let centre = nalgebra::Vector3::new(args.x_mm, args.y_mm, args.z_mm);
-    let t = centre - r * marker.centre().0.coords;
     Ok(Scene {
         payload: args.payload.as_bytes().to_vec(),
         ec_level,
@@ -116,7 +115,7 @@ fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
         camera,
         width_px: args.width_px,
         height_px: args.height_px,
-        pose: MarkerToCamera::new(r, t),
+        pose: marker.pose_centred_at(r, centre),
     })
 }
 

@@ -206,8 +206,8 @@ fn levels_and_cost(
 /// `sigma0` is the starting blur (modules). With `scan`, δ is first searched on a coarse
 /// grid over ±[`MAX_SHIFT_MODULES`] (for a start that may be a module fraction off) and
 /// refined by a few iterations only; without, the fit starts at δ = 0 and iterates to
-/// convergence. `None` when there are too few samples, the fit
-/// does not settle, the contrast vanishes, or δ leaves ±[`MAX_SHIFT_MODULES`].
+/// convergence. `None` when there are too few samples, the fit does not settle, the
+/// contrast vanishes, or δ leaves ±[`MAX_SHIFT_MODULES`].
 pub fn fit_profile(
     runs: &[DarkRun],
     d: &[f64],
@@ -345,11 +345,10 @@ mod tests {
                 (delta - true_delta).abs() < 1e-3,
                 "δ {delta} vs {true_delta} at σ {sigma}"
             );
-            let fit = fine;
             assert!(
-                (fit.sigma - sigma).abs() < 1e-2,
+                (fine.sigma - sigma).abs() < 1e-2,
                 "σ {} vs {sigma}",
-                fit.sigma
+                fine.sigma
             );
         }
     }

@@ -1,8 +1,9 @@
 //! The rxing backend: rxing's port of zxing-cpp's QR reader (`qrcode::cpp_port::QrReader`),
 //! multi-symbol, try-harder, on rxing's hybrid (local) binariser, or on its global-histogram
-//! one ([`RxingDetector::global_histogram`], for `auto`'s second passes). Corners are whole pixels; the
-//! module count is not reported and is measured by [`super::corners`]. rxing lists the
-//! corners as TL, TR, BL, BR (checked on rendered ground truth); they are reordered here.
+//! one ([`RxingDetector::global_histogram`], for `auto`'s second passes). Corners are whole
+//! pixels; the module count is not reported and is measured by [`super::corners`]. rxing
+//! lists the corners as TL, TR, BL, BR (checked on rendered ground truth); they are
+//! reordered here.
 //!
 //! The hybrid binariser is rxing's algorithm reimplemented ([`LocalBinarizer`]): the same
 //! bits (a test compares them), faster: rxing sets the matrix one bit at a time, which was

@@ -5,8 +5,8 @@
 //! P4 bottom-left. Edges follow the paper's Table 1: l1 = P1P2, l2 = P2P3, l3 = P3P4,
 //! l4 = P1P4 (sides), l5 = P1P3, l6 = P2P4 (diagonals, √2·l, Eq. 9).
 
-use super::frames::MarkerPoint;
-use nalgebra::Point3;
+use super::frames::{MarkerPoint, MarkerToCamera};
+use nalgebra::{Point3, Rotation3, Vector3};
 use std::f64::consts::SQRT_2;
 use thiserror::Error;
 
@@ -200,11 +200,29 @@ impl Marker {
     pub fn centre(&self) -> MarkerPoint {
         MarkerPoint(Point3::new(-self.size_mm / 2.0, self.size_mm / 2.0, 0.0))
     }
+
+    /// The pose that turns this marker by `r_cm` and puts its centre at `centre_mm` in the
+    /// camera frame (the translation is then that of P2, the marker frame's origin).
+    #[must_use]
+    pub fn pose_centred_at(&self, r_cm: Rotation3<f64>, centre_mm: Vector3<f64>) -> MarkerToCamera {
+        MarkerToCamera::new(r_cm, centre_mm - r_cm * self.centre().0.coords)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pose_centred_at_puts_the_centre_there() {
+        let marker = Marker::try_new(40.0).expect("valid size");
+        let r = Rotation3::from_euler_angles(0.3, -0.2, 1.1);
+        let centre = Vector3::new(12.0, -7.0, 400.0);
+        let pose = marker.pose_centred_at(r, centre);
+        let seen = pose.transform(&marker.centre()).0.coords;
+        assert!((seen - centre).norm() < 1e-12, "{seen}");
+        assert!(pose.rotation().angle_to(&r) < 1e-12);
+    }
 
     #[test]
     fn qr_order_maps_to_paper_labels() {

@@ -127,7 +127,7 @@ fn draw_pose(
     )
     .normalize();
     let centre = ray * d;
-    MarkerToCamera::new(r, centre - r * marker.centre().0.coords)
+    marker.pose_centred_at(r, centre)
 }
 
 /// Generates the dataset: deterministic for a given spec.

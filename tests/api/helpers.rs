@@ -2,7 +2,7 @@
 
 use qrpose::api::problem::{ErrorCode, Problem};
 use qrpose::config::{LogFormat, Settings};
-use qrpose::geometry::{camera::Camera, euler::EulerXyz, frames::MarkerToCamera, marker::Marker};
+use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
 use qrpose::http::{self, AppState};
 use qrpose::render::{EcLevel, Effects, Encoding, Rendered, Scene, render};
 use reqwest::{Response, StatusCode, header};
@@ -364,7 +364,7 @@ pub fn render_photo(encoding: Encoding, centre_mm: [f64; 3]) -> Rendered {
         camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("a valid camera"),
         width_px: 1280,
         height_px: 720,
-        pose: MarkerToCamera::new(r, centre - r * marker.centre().0.coords),
+        pose: marker.pose_centred_at(r, centre),
     };
     let effects = Effects {
         supersample: 2,
