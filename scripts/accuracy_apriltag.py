@@ -38,7 +38,7 @@ def apriltag_results(path, rows):
 
     names = {
         "apriltag_estimate_tag_pose": "AprilTag estimate_tag_pose (homography + orthogonal iteration + 2nd minimum)",
-        "apriltag_homography": "AprilTag homography only (estimate_pose_for_tag_homography)",
+        "apriltag_homography": "AprilTag homography only (a copy of estimate_pose_for_tag_homography, not exported by libapriltag 3.3.0)",
     }
     results = {}
     with open(path) as f:
@@ -68,13 +68,7 @@ def main():
     print(f"{len(rows)} cases: 1280x720, f = {header['f_px']:g} px, {header['marker_mm']:g} mm marker at 200-1500 mm, "
           f"tilt 0-60 deg, sigma = {header['sigma_px']:g} px, seed {int(header['seed'])}; OpenCV {cv_version}, "
           f"libapriltag 3.3.0 (Debian)\n")
-    print("| method | rotation error median / mean / p95 (deg) | position error median / mean / p95 (mm) |")
-    print("|---|---|---|")
-    for name, (rot, pos) in {**ours, **theirs, **april}.items():
-        mean_r = sum(rot) / len(rot)
-        mean_p = sum(pos) / len(pos)
-        print(f"| {name} | {ac.quantile(rot, .5):.3f} / {mean_r:.3f} / {ac.quantile(rot, .95):.3f} "
-              f"| {ac.quantile(pos, .5):.3f} / {mean_p:.3f} / {ac.quantile(pos, .95):.3f} |")
+    ac.print_table({**ours, **theirs, **april})
 
 
 if __name__ == "__main__":

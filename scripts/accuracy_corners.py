@@ -141,9 +141,14 @@ def main():
     theirs, cv_version = opencv_results(header, rows)
     print(f"{len(rows)} cases: 1280x720, f = {header['f_px']:g} px, {header['marker_mm']:g} mm marker at 200-1500 mm, "
           f"tilt 0-60 deg, sigma = {header['sigma_px']:g} px, seed {int(header['seed'])}; OpenCV {cv_version}\n")
+    print_table({**ours, **theirs})
+
+
+def print_table(results):
+    """A markdown table of {method: (rotation errors deg, position errors mm)}."""
     print("| method | rotation error median / mean / p95 (deg) | position error median / mean / p95 (mm) |")
     print("|---|---|---|")
-    for name, (rot, pos) in {**ours, **theirs}.items():
+    for name, (rot, pos) in results.items():
         mean_r = sum(rot) / len(rot)
         mean_p = sum(pos) / len(pos)
         print(f"| {name} | {quantile(rot, .5):.3f} / {mean_r:.3f} / {quantile(rot, .95):.3f} "
