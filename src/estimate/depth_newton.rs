@@ -10,17 +10,24 @@
 //! **Start.** From equal depths (the paper's start) the tilt directions are second order in
 //! the lengths, so the Jacobian is nearly singular there and the first steps are poor (18
 //! iterations for a 25° tilt in the test below; the same flat start is what stalls the
-//! paper's update). By default the start therefore uses what the paper leaves unused: a
+//! paper's update). By default the search therefore starts from the closed-form planar pose
+//! of [`super::ippe`]: of its two candidates (the planar ambiguity), the one whose corners
+//! reproject closer to the rays, and the depths of its corners. On exact input that start
+//! is already the answer; under noise it lies in the basin of the least-squares depths,
+//! which Levenberg-Marquardt then reaches in two or three steps (mean 3.8 iterations on
+//! `examples/corner_accuracy`'s 2000 noisy views, against 9.4 from the start below).
+//!
+//! Should the homography be degenerate, the start uses what the paper leaves unused: a
 //! square is a parallelogram, so P1 + P3 = P2 + P4, i.e. z1·q1 − z2·q2 + z3·q3 − z4·q4 = 0.
-//! Three linear equations fix z1..z4 up to scale (the null vector of [q1 −q2 q3 −q4]),
-//! and the known side length fixes the scale. On exact input that start is already the
-//! answer; under noise Levenberg-Marquardt takes it to the least-squares depths. Should the
-//! null vector not give four positive depths, the start falls back to the similar-triangles
-//! depth of paper Eq. 2 (z ≈ L·f / l_image, averaged over the six edges). A caller's
-//! `initial_z_mm` replaces both with the paper's equal-depth start.
+//! Three linear equations fix z1..z4 up to scale (the null vector of [q1 −q2 q3 −q4]), and
+//! the known side length fixes the scale. That start is also exact on exact input, but
+//! under noise it is poor for small or distant codes, whose outlines barely constrain the
+//! tilt. Should the null vector not give four positive depths either, the start falls back
+//! to the similar-triangles depth of paper Eq. 2 (z ≈ L·f / l_image, averaged over the six
+//! edges). A caller's `initial_z_mm` replaces all of them with the paper's equal-depth start.
 
 use super::iterative::side_errors_mm;
-use super::{TraceStep, lm};
+use super::{TraceStep, ippe, lm};
 use crate::geometry::{
     frames::NormalizedPoint,
     marker::{EDGES, Marker},
@@ -71,6 +78,29 @@ pub fn similar_triangles_depth_mm(rays: &[NormalizedPoint; 4], marker: &Marker) 
     sum / EDGES.len() as f64
 }
 
+/// Depths z1..z4 (mm) of the corners under the closed-form planar pose (IPPE candidate) whose
+/// corners reproject closer to `rays`, or `None` when the homography is degenerate or that
+/// pose puts a corner at or behind the camera.
+pub fn planar_pose_depths_mm(rays: &[NormalizedPoint; 4], marker: &Marker) -> Option<[f64; 4]> {
+    let model = ippe::centred_model(marker);
+    let corners = |pose: &ippe::CentredPose| model.map(|m| pose.r * m + pose.centre_mm);
+    let squared_error = |points: &[Vector3<f64>; 4]| -> f64 {
+        points
+            .iter()
+            .zip(rays)
+            .map(|(p, n)| (p.x / p.z - n.x()).powi(2) + (p.y / p.z - n.y()).powi(2))
+            .sum()
+    };
+    let [a, b] = ippe::candidates(rays, marker)?.map(|pose| corners(&pose));
+    let best = if squared_error(&a) <= squared_error(&b) {
+        a
+    } else {
+        b
+    };
+    let z = best.map(|p| p.z);
+    z.iter().all(|v| v.is_finite() && *v > 0.0).then_some(z)
+}
+
 /// Depths z1..z4 (mm) of the parallelogram through the four rays whose edges best match
 /// the marker's, or `None` when the rays admit no parallelogram in front of the camera.
 pub fn parallelogram_depths_mm(rays: &[NormalizedPoint; 4], marker: &Marker) -> Option<[f64; 4]> {
@@ -103,6 +133,19 @@ pub fn parallelogram_depths_mm(rays: &[NormalizedPoint; 4], marker: &Marker) -> 
     z.iter().all(|v| v.is_finite() && *v > 0.0).then_some(z)
 }
 
+/// The Gram matrix G_ab = q_a·q_b of the rays q_i = (x_n,i, y_n,i, 1): with it every dot
+/// product of the derivatives below is two products and a difference.
+fn ray_gram(rays: &[NormalizedPoint; 4]) -> [[f64; 4]; 4] {
+    let q = rays.map(|n| Vector3::new(n.x(), n.y(), 1.0));
+    let mut g = [[0.0; 4]; 4];
+    for (a, row) in g.iter_mut().enumerate() {
+        for (b, v) in row.iter_mut().enumerate() {
+            *v = q[a].dot(&q[b]);
+        }
+    }
+    g
+}
+
 /// Cost, Newton Hessian and gradient at depths `z`.
 ///
 /// For edge j between corners a and b, with A = [q_a, −q_b] and d = z_a·q_a − z_b·q_b, the
@@ -112,42 +155,55 @@ pub fn parallelogram_depths_mm(rays: &[NormalizedPoint; 4], marker: &Marker) -> 
 /// drops). Under noise the residuals stay non-zero and in the weakly observed tilt
 /// directions that term is as large as JᵀJ: without it convergence is only linear (5.7 %
 /// of the noisy cases in `examples/corner_accuracy` needed more than 30 iterations).
-fn linearise(rays: &[NormalizedPoint; 4], z: &[f64; 4], marker: &Marker) -> lm::Linearisation<4> {
-    let q = rays.map(|n| Vector3::new(n.x(), n.y(), 1.0));
-    let mut jtj = Matrix4::zeros();
-    let mut hessian = Matrix4::zeros();
-    let mut jtr = Vector4::zeros();
+///
+/// AᵀA and Aᵀd come from the Gram matrix `g` (Aᵀd = (z_a·G_aa − z_b·G_ab,
+/// z_b·G_bb − z_a·G_ab)); |d| itself is computed from the difference of the points, which
+/// keeps full precision when the marker is small against its distance.
+fn linearise(
+    rays: &[NormalizedPoint; 4],
+    g: &[[f64; 4]; 4],
+    z: &[f64; 4],
+    marker: &Marker,
+) -> lm::Linearisation<4> {
+    let mut jtj = [[0.0; 4]; 4];
+    let mut hessian = [[0.0; 4]; 4];
+    let mut jtr = [0.0; 4];
     let mut cost = 0.0;
     for edge in &EDGES {
         let (a, b) = (edge.a, edge.b);
-        let d = q[a] * z[a] - q[b] * z[b];
-        let len = d.norm();
+        let (za, zb) = (z[a], z[b]);
+        let dx = rays[a].x() * za - rays[b].x() * zb;
+        let dy = rays[a].y() * za - rays[b].y() * zb;
+        let dz = za - zb;
+        let len = (dx * dx + dy * dy + dz * dz).sqrt();
         let r = len - marker.edge_length_mm(edge);
         cost += r * r;
         if len == 0.0 {
             continue;
         }
-        let grad = [d.dot(&q[a]) / len, -d.dot(&q[b]) / len];
-        // AᵀA for A = [q_a, −q_b].
-        let ata = [
-            [q[a].dot(&q[a]), -q[a].dot(&q[b])],
-            [-q[a].dot(&q[b]), q[b].dot(&q[b])],
+        let inv_len = 1.0 / len;
+        let grad = [
+            (za * g[a][a] - zb * g[a][b]) * inv_len,
+            (zb * g[b][b] - za * g[a][b]) * inv_len,
         ];
+        // AᵀA for A = [q_a, −q_b].
+        let ata = [[g[a][a], -g[a][b]], [-g[a][b], g[b][b]]];
         let idx = [a, b];
-        for (m, &i) in idx.iter().enumerate() {
-            jtr[i] += grad[m] * r;
-            for (n, &k) in idx.iter().enumerate() {
+        for m in 0..2 {
+            jtr[idx[m]] += grad[m] * r;
+            for n in 0..2 {
                 let gn = grad[m] * grad[n];
-                jtj[(i, k)] += gn;
-                hessian[(i, k)] += gn + r * (ata[m][n] - gn) / len;
+                jtj[idx[m]][idx[n]] += gn;
+                hessian[idx[m]][idx[n]] += gn + r * (ata[m][n] - gn) * inv_len;
             }
         }
     }
+    let matrix = |m: [[f64; 4]; 4]| Matrix4::from_fn(|i, k| m[i][k]);
     lm::Linearisation {
         cost,
-        jtj,
-        newton: Some(hessian),
-        jtr,
+        jtj: matrix(jtj),
+        newton: Some(matrix(hessian)),
+        jtr: Vector4::from(jtr),
     }
 }
 
@@ -158,13 +214,14 @@ fn cost_at(rays: &[NormalizedPoint; 4], z: &[f64; 4], marker: &Marker) -> f64 {
 /// The six length residuals as a least-squares problem in z1..z4.
 struct DepthProblem<'a> {
     rays: &'a [NormalizedPoint; 4],
+    gram: [[f64; 4]; 4],
     marker: &'a Marker,
 }
 
 impl lm::Problem<4> for DepthProblem<'_> {
     type Point = [f64; 4];
     fn linearise(&self, z: &[f64; 4]) -> lm::Linearisation<4> {
-        linearise(self.rays, z, self.marker)
+        linearise(self.rays, &self.gram, z, self.marker)
     }
     fn cost(&self, z: &[f64; 4]) -> f64 {
         cost_at(self.rays, z, self.marker)
@@ -190,7 +247,8 @@ pub fn solve(
 ) -> DepthSolution {
     let start = match params.initial_z_mm {
         Some(z0) => [z0; 4],
-        None => parallelogram_depths_mm(rays, marker)
+        None => planar_pose_depths_mm(rays, marker)
+            .or_else(|| parallelogram_depths_mm(rays, marker))
             .unwrap_or([similar_triangles_depth_mm(rays, marker); 4]),
     };
     let settings = lm::Settings {
@@ -198,7 +256,12 @@ pub fn solve(
         floor_cost: (RESIDUAL_FLOOR_REL * marker.size_mm()).powi(2) * EDGES.len() as f64,
         trace: params.trace,
     };
-    let out = lm::minimise(&DepthProblem { rays, marker }, start, &settings);
+    let problem = DepthProblem {
+        rays,
+        gram: ray_gram(rays),
+        marker,
+    };
+    let out = lm::minimise(&problem, start, &settings);
     let trace = out.steps.map(|accepted| {
         let mut previous = start;
         accepted
@@ -261,6 +324,46 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// On noisy corners the planar-pose start lies in the basin of the least-squares depths,
+    /// and the search stops once the remaining decrease is rounding. From the parallelogram
+    /// start, or without the stop on negligible rejected steps, these 256 views took 9.3
+    /// iterations on average, and a quarter of them 12 or more.
+    #[test]
+    fn converges_in_a_few_iterations_on_noisy_corners() {
+        use crate::geometry::marker::CornerOrder;
+        use crate::sim::dataset::{DatasetSpec, generate};
+        let spec = DatasetSpec {
+            cases: 256,
+            ..DatasetSpec::default()
+        };
+        let cases = generate(&spec).expect("dataset");
+        let (camera, marker) = (
+            spec.camera().expect("camera"),
+            spec.marker().expect("marker"),
+        );
+        let params = DepthNewtonParams {
+            initial_z_mm: None,
+            max_iterations: 30,
+            trace: false,
+        };
+        let mut counts: Vec<u32> = cases
+            .iter()
+            .map(|case| {
+                let rays = CornerOrder::Qr
+                    .to_paper(case.noisy_px)
+                    .map(|p| camera.normalize(&p).expect("no distortion"));
+                let out = solve(&rays, &marker, &params);
+                assert!(out.converged, "{out:?}");
+                out.iterations
+            })
+            .collect();
+        counts.sort_unstable();
+        let mean = f64::from(counts.iter().sum::<u32>()) / counts.len() as f64;
+        let p90 = counts[counts.len() * 9 / 10];
+        assert!(mean <= 4.5, "mean {mean} iterations");
+        assert!(p90 <= 6, "p90 {p90} iterations");
     }
 
     #[test]

@@ -152,7 +152,7 @@ pub fn centre_for_rotation(
             atb += row * rhs;
         }
     }
-    ata.cholesky().map(|c| c.solve(&atb))
+    super::lm::solve_spd(&ata, &atb)
 }
 
 /// Hartley's normalising similarity: centroid to the origin, mean distance √2.
