@@ -40,10 +40,16 @@ pub const MAX_MOVE_MODULES: f64 = 2.0;
 pub const MIN_PX_PER_MODULE: f64 = 1.2;
 /// Huber threshold of the homography fit, px.
 const HUBER_PX: f64 = 0.3;
+/// The reweighted homography fit stops once no Huber weight changes by more than this.
+const WEIGHT_SETTLED: f64 = 1e-3;
 /// Half-length of a profile across an edge, modules.
 const PROFILE_HALF_MODULES: f64 = 2.5;
 /// Most samples in one profile (cost grows with it; 24 keeps ≥ 4 per module).
 const MAX_PROFILE_SAMPLES: usize = 24;
+/// Most samples in one profile of the first, scanning pass, which only brings the homography
+/// close: 16 keeps ≥ 3 per module. (Capping the final pass at 16 as well lost one code of
+/// the real photos, whose re-read goes through the refined grid.)
+const MAX_SCAN_PROFILE_SAMPLES: usize = 16;
 /// Starting blur of a profile fit, px.
 const SIGMA0_PX: f64 = 1.0;
 /// Fewest edge observations on one finder side for its line fit.
@@ -164,6 +170,22 @@ fn function_module(n: usize, i: usize, j: usize) -> Option<bool> {
         return Some(j.is_multiple_of(2));
     }
     None
+}
+
+/// Every function-pattern module (i, j, dark) of an N-module symbol: the three finders with
+/// their separators, and the two timing patterns between them. The same modules as
+/// [`function_module`] marks, without visiting the N² data modules.
+fn function_modules(n: usize) -> impl Iterator<Item = (usize, usize, bool)> {
+    let origins = [(0, 0), (n - 8, 0), (0, n - 8)];
+    let finders = origins.into_iter().flat_map(move |(i0, j0)| {
+        (0..64).filter_map(move |k| {
+            let (i, j) = (i0 + k % 8, j0 + k / 8);
+            function_module(n, i, j).map(|dark| (i, j, dark))
+        })
+    });
+    let timing = (8..n - 8).flat_map(|k| [(k, 6, k % 2 == 0), (6, k, k % 2 == 0)]);
+    // The timing patterns first: they tell module counts apart soonest.
+    timing.chain(finders)
 }
 
 /// Light and dark reference levels: the quiet zone just outside the symbol and the finder
@@ -372,6 +394,8 @@ fn point_on(axis: Axis, c: f64, t: f64, d: f64) -> ModulePoint {
 fn observe(image: &GrayImage, h: &Homography, map: &ModuleMap, scan: bool) -> Vec<Observation> {
     let n = map.n;
     let mut out = Vec::new();
+    // One pair of sample buffers for every profile.
+    let (mut d, mut intensity) = (Vec::new(), Vec::new());
     for s in sites(n).into_iter().filter(|s| !scan || s.k % 2 == 0) {
         let Some(runs) = site_runs(map, &s) else {
             continue;
@@ -387,14 +411,20 @@ fn observe(image: &GrayImage, h: &Homography, map: &ModuleMap, scan: bool) -> Ve
             continue;
         }
         // One profile per module (two on modules over 4 px), kept 0.2 module off the module
-        // ends; samples every 0.5 px, at most MAX_PROFILE_SAMPLES.
+        // ends; samples every 0.5 px, at most MAX_PROFILE_SAMPLES (MAX_SCAN_PROFILE_SAMPLES
+        // when scanning).
         let count = if along > 4.0 { 2 } else { 1 };
-        let step_d = (0.5 / across).max(2.0 * PROFILE_HALF_MODULES / MAX_PROFILE_SAMPLES as f64);
+        let max_samples = if scan {
+            MAX_SCAN_PROFILE_SAMPLES
+        } else {
+            MAX_PROFILE_SAMPLES
+        };
+        let step_d = (0.5 / across).max(2.0 * PROFILE_HALF_MODULES / max_samples as f64);
         let samples = (2.0 * PROFILE_HALF_MODULES / step_d).ceil() as usize;
         for m in 0..count {
             let t = s.k as f64 + 0.2 + 0.6 * (m as f64 + 0.5) / count as f64;
-            let mut d = Vec::with_capacity(samples);
-            let mut intensity = Vec::with_capacity(samples);
+            d.clear();
+            intensity.clear();
             for q in 0..=samples {
                 let x = -PROFILE_HALF_MODULES + q as f64 * step_d;
                 let p = h.map(point_on(s.axis, c, t, x));
@@ -473,10 +503,16 @@ fn fit_homography(obs: &[Observation], start: &Homography) -> Option<Homography>
             .min_by(|a, b| a.1.total_cmp(b.1))?;
         let v = svd.eigenvectors.column(imin);
         g = Matrix3::new(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]);
-        // Huber weights from the pixel residuals.
+        // Huber weights from the pixel residuals; once they stop changing, so does G.
+        let mut largest_change: f64 = 0.0;
         for (k, o) in obs.iter().enumerate() {
             let r = residual_px(&g, &t, o).abs();
-            weights[k] = if r <= HUBER_PX { 1.0 } else { HUBER_PX / r };
+            let w = if r <= HUBER_PX { 1.0 } else { HUBER_PX / r };
+            largest_change = largest_change.max((w - weights[k]).abs());
+            weights[k] = w;
+        }
+        if largest_change < WEIGHT_SETTLED {
+            break;
         }
     }
     let h = (g * t).try_inverse()?;
@@ -576,11 +612,15 @@ fn finder_corners(obs: &[Observation]) -> Option<[PixelPoint; 12]> {
 
 /// How well the function patterns (finders, separators, timing) under the corners match
 /// an N-module symbol, in [−1, 1]: the mean signed darkness at their module centres.
+/// `None` when a module cannot be sampled, or, given `to_beat`, as soon as the score can no
+/// longer exceed it (each module adds at most 1): the search over versions then reads only
+/// a fraction of the modules of most wrong versions.
 fn function_pattern_score(
     image: &GrayImage,
     corners: &[PixelPoint; 4],
     n: usize,
     (light, dark): (f64, f64),
+    to_beat: Option<f64>,
 ) -> Option<f64> {
     let h = Homography::from_corners(corners, n as f64)?;
     let contrast = light - dark;
@@ -588,18 +628,17 @@ fn function_pattern_score(
         return None;
     }
     let mid = 0.5 * (light + dark);
+    let total = function_modules(n).count() as f64;
     let mut score = 0.0;
     let mut count = 0.0;
-    for j in 0..n {
-        for i in 0..n {
-            let Some(expected_dark) = function_module(n, i, j) else {
-                continue;
-            };
-            let x = h.map(ModulePoint::new(i as f64 + 0.5, j as f64 + 0.5));
-            let value = image.sample(x.u(), x.v())?;
-            let darkness = ((mid - value) / (0.5 * contrast)).clamp(-1.0, 1.0);
-            score += if expected_dark { darkness } else { -darkness };
-            count += 1.0;
+    for (i, j, expected_dark) in function_modules(n) {
+        let x = h.map(ModulePoint::new(i as f64 + 0.5, j as f64 + 0.5));
+        let value = image.sample(x.u(), x.v())?;
+        let darkness = ((mid - value) / (0.5 * contrast)).clamp(-1.0, 1.0);
+        score += if expected_dark { darkness } else { -darkness };
+        count += 1.0;
+        if to_beat.is_some_and(|best| score + (total - count) <= best * total) {
+            return None;
         }
     }
     (count > 0.0).then(|| score / count)
@@ -624,8 +663,10 @@ fn quad_levels(image: &GrayImage, corners: &[PixelPoint; 4]) -> Option<(f64, f64
     if values.len() < 100 {
         return None;
     }
-    values.sort_by(f64::total_cmp);
-    let at = |q: f64| values[((values.len() - 1) as f64 * q) as usize];
+    let mut at = |q: f64| {
+        let k = ((values.len() - 1) as f64 * q) as usize;
+        *values.select_nth_unstable_by(k, f64::total_cmp).1
+    };
     Some((at(0.9), at(0.1)))
 }
 
@@ -642,7 +683,7 @@ pub fn estimate_module_count(image: &GrayImage, corners: &[PixelPoint; 4]) -> Op
         if side_px / (n as f64) < MIN_PX_PER_MODULE {
             break;
         }
-        if let Some(score) = function_pattern_score(image, corners, n, levels)
+        if let Some(score) = function_pattern_score(image, corners, n, levels, best.map(|b| b.0))
             && best.is_none_or(|(s, _)| score > s)
         {
             best = Some((score, n));
@@ -704,5 +745,24 @@ pub fn refine_corners(
         module_count: Some(n),
         status: RefineStatus::Refined,
         observations: obs.len(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn function_modules_lists_exactly_the_function_patterns() {
+        for n in [21, 25, 57, 177] {
+            let mut listed: Vec<_> = function_modules(n).collect();
+            listed.sort_unstable();
+            let mut scanned: Vec<_> = (0..n)
+                .flat_map(|j| (0..n).map(move |i| (i, j)))
+                .filter_map(|(i, j)| function_module(n, i, j).map(|dark| (i, j, dark)))
+                .collect();
+            scanned.sort_unstable();
+            assert_eq!(listed, scanned, "N = {n}");
+        }
     }
 }
