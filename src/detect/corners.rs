@@ -188,6 +188,12 @@ fn function_modules(n: usize) -> impl Iterator<Item = (usize, usize, bool)> {
     timing.chain(finders)
 }
 
+/// How many modules [`function_modules`] lists: three 8 × 8 finders with separators and
+/// two timing patterns of N − 16 modules each.
+fn function_module_count(n: usize) -> usize {
+    3 * 64 + 2 * (n - 16)
+}
+
 /// Light and dark reference levels: the quiet zone just outside the symbol and the finder
 /// cores. `None` when they cannot be sampled.
 fn reference_levels(image: &GrayImage, h: &Homography, n: usize) -> Option<(f64, f64)> {
@@ -628,20 +634,19 @@ fn function_pattern_score(
         return None;
     }
     let mid = 0.5 * (light + dark);
-    let total = function_modules(n).count() as f64;
+    let total = function_module_count(n) as f64;
     let mut score = 0.0;
-    let mut count = 0.0;
-    for (i, j, expected_dark) in function_modules(n) {
+    for (seen, (i, j, expected_dark)) in function_modules(n).enumerate() {
         let x = h.map(ModulePoint::new(i as f64 + 0.5, j as f64 + 0.5));
         let value = image.sample(x.u(), x.v())?;
         let darkness = ((mid - value) / (0.5 * contrast)).clamp(-1.0, 1.0);
         score += if expected_dark { darkness } else { -darkness };
-        count += 1.0;
-        if to_beat.is_some_and(|best| score + (total - count) <= best * total) {
+        let left = total - (seen + 1) as f64;
+        if to_beat.is_some_and(|best| score + left <= best * total) {
             return None;
         }
     }
-    (count > 0.0).then(|| score / count)
+    Some(score / total)
 }
 
 /// Light and dark levels inside a quad (90th and 10th percentiles of a 32 × 32 grid), for
@@ -762,6 +767,7 @@ mod tests {
                 .filter_map(|(i, j)| function_module(n, i, j).map(|dark| (i, j, dark)))
                 .collect();
             scanned.sort_unstable();
+            assert_eq!(listed.len(), function_module_count(n), "N = {n}");
             assert_eq!(listed, scanned, "N = {n}");
         }
     }

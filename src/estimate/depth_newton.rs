@@ -328,8 +328,9 @@ mod tests {
 
     /// On noisy corners the planar-pose start lies in the basin of the least-squares depths,
     /// and the search stops once the remaining decrease is rounding. From the parallelogram
-    /// start, or without the stop on negligible rejected steps, these 256 views took 9.3
-    /// iterations on average, and a quarter of them 12 or more.
+    /// start these 256 views took 9.3 iterations on average, and a quarter of them 12 or
+    /// more; from the planar-pose start without the stop on negligible rejected steps
+    /// (`lm`), 2000 such views took 4.6 on average, with a 90th percentile of 9.
     #[test]
     fn converges_in_a_few_iterations_on_noisy_corners() {
         use crate::geometry::marker::CornerOrder;
