@@ -6,9 +6,14 @@ use nalgebra::Vector3;
 use qrpose::api::image::{ImageRequest, PointsDto, estimate_image};
 use qrpose::api::problem::ErrorCode;
 use qrpose::detect::{
-    Backend, DetectorChoice, decode::DecodeLimits, decode::decode_gray, detect_codes,
+    Backend, Detector, DetectorChoice,
+    corners::{RefineStatus, refine_corners},
+    decode::DecodeLimits,
+    decode::decode_gray,
+    detect_codes, downscale_half,
+    rxing::RxingDetector,
 };
-use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
+use qrpose::geometry::{camera::Camera, euler::EulerXyz, frames::PixelPoint, marker::Marker};
 use qrpose::render::{EcLevel, Effects, Encoding, Rendered, Scene, render};
 use serde_json::json;
 
@@ -70,6 +75,14 @@ fn every_backend_finds_a_rendered_code_and_refines_its_corners() {
         assert_eq!(codes.len(), 1, "{}: one code", backend.as_str());
         let code = &codes[0];
         assert_eq!(code.candidate.text.as_deref(), Some("backend test"));
+        // Every backend gives the module count (rxing's reader drops it; ours keeps it), so
+        // that refinement does not have to guess it.
+        assert_eq!(
+            code.candidate.module_count,
+            Some(r.truth.module_count),
+            "{}",
+            backend.as_str()
+        );
         assert!(
             code.is_refined(),
             "{}: {:?}",
@@ -512,6 +525,62 @@ fn auto_reads_a_large_code_in_an_hd_frame_and_refines_it_at_full_resolution() {
     let found = codes[0].corners_px().map(|p| [p.u(), p.v()]);
     let err = max_corner_error_px(&found, &r.truth.corners_px);
     assert!(err < CORNER_TOL_PX, "corner error {err} px");
+}
+
+#[test]
+fn refinement_converges_from_the_corners_of_a_half_scale_read() {
+    // rxing's whole-pixel corners on a half-scale copy, mapped back: 2-3 px off at about
+    // 5 px per module. The scanning pass and one final pass leave most of a pixel; the
+    // final passes that follow while the corners still move bring them to the accuracy of a
+    // start at the true corners.
+    let r = hd_frame("ROUGH-START", 400.0, 0.8, 5);
+    let image = decode_gray(&r.encoded, &DecodeLimits::default()).expect("decodes");
+    let half = downscale_half(&image).expect("halves");
+    let found = RxingDetector::hybrid().detect(&half);
+    assert_eq!(found.len(), 1, "rxing reads the half-scale copy");
+    let rough = found[0]
+        .corners_px
+        .map(|p| PixelPoint::new(2.0 * p.u() + 0.5, 2.0 * p.v() + 0.5));
+    let n = r.truth.module_count;
+    assert_eq!(found[0].module_count, Some(n));
+    let truth = r.truth.corners_px;
+    let err = |c: &[PixelPoint; 4]| max_corner_error_px(&c.map(|p| [p.u(), p.v()]), &truth);
+    let exact = truth.map(|t| PixelPoint::new(t[0], t[1]));
+    let from_rough = refine_corners(&image, &rough, Some(n));
+    let from_truth = refine_corners(&image, &exact, Some(n));
+    let (e_start, e_rough, e_truth) = (
+        err(&rough),
+        err(&from_rough.corners_px),
+        err(&from_truth.corners_px),
+    );
+    eprintln!("start {e_start} px, from rough {e_rough} px, from truth {e_truth} px");
+    assert_eq!(from_rough.status, RefineStatus::Refined);
+    assert!(e_start > 1.5, "a rough start: {e_start} px");
+    // One final pass alone leaves about 0.1 px here.
+    assert!(e_rough < 0.06, "from {e_start} px off: {e_rough} px");
+}
+
+/// Regression: a real photo (zxing-cpp sample qrcode-4/08.webp) that only the re-read
+/// through the refined module grid decodes, and on which the refinement's passes do not
+/// converge (the corners move 1 px, then 4 px): the pass that moved them further than the
+/// one before is dropped, and the grid of the pass before still reads.
+#[test]
+fn a_diverging_refinement_keeps_the_pass_before_and_the_photo_still_reads() {
+    let bytes = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/zxing-cpp-qrcode-4-08.webp"
+    ))
+    .expect("fixture");
+    let image = decode_gray(&bytes, &DecodeLimits::default()).expect("decodes");
+    let codes = detect_codes(&image, DetectorChoice::Auto).expect("built");
+    let texts: Vec<_> = codes
+        .iter()
+        .filter_map(|c| c.candidate.text.as_deref())
+        .collect();
+    assert!(
+        texts.contains(&"Google Print Ads - T.G.I.A.F. - January 31, 2008"),
+        "{texts:?}"
+    );
 }
 
 #[test]

@@ -1,9 +1,9 @@
 //! The rxing backend: rxing's port of zxing-cpp's QR reader (`qrcode::cpp_port::QrReader`),
 //! multi-symbol, try-harder, on rxing's hybrid (local) binariser, or on its global-histogram
 //! one ([`RxingDetector::global_histogram`], for `auto`'s second passes). Corners are whole
-//! pixels; the module count is not reported and is measured by [`super::corners`]. rxing
-//! lists the corners as TL, TR, BL, BR (checked on rendered ground truth); they are
-//! reordered here.
+//! pixels. The reader's steps are taken one by one (`read`) to keep the module count,
+//! which rxing's results drop. rxing lists the corners as TL, TR, BL, BR (checked on
+//! rendered ground truth); they are reordered here.
 //!
 //! The hybrid binariser is rxing's algorithm reimplemented ([`LocalBinarizer`]): the same
 //! bits (a test compares them), faster: rxing sets the matrix one bit at a time, which was
@@ -13,12 +13,14 @@
 use super::decode::GrayImage;
 use super::{Backend, Candidate, Detector};
 use crate::geometry::frames::PixelPoint;
-use rxing::common::{BitArray, BitMatrix, GlobalHistogramBinarizer, LineOrientation};
-use rxing::multi::MultipleBarcodeReader;
-use rxing::qrcode::cpp_port::QrReader;
-use rxing::{BarcodeFormat, Binarizer, BinaryBitmap, DecodeHints, Luma8Source, LuminanceSource};
+use rxing::common::cpp_essentials::concentric_finder::ConcentricPattern;
+use rxing::common::{
+    BitArray, BitMatrix, DetectorRXingResult, GlobalHistogramBinarizer, LineOrientation,
+};
+use rxing::qrcode::cpp_port::decoder::Decode;
+use rxing::qrcode::cpp_port::detector::{FindFinderPatterns, GenerateFinderPatternSets, SampleQR};
+use rxing::{BarcodeFormat, Binarizer, Luma8Source, LuminanceSource, RXingResult};
 use std::borrow::Cow;
-use std::collections::HashSet;
 
 /// rxing behind the [`Detector`] interface.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -50,42 +52,57 @@ fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Vec<Candidate>
         return Vec::new();
     };
     if global_histogram {
-        read(BinaryBitmap::new(GlobalHistogramBinarizer::new(source)))
+        read(&GlobalHistogramBinarizer::new(source))
     } else {
-        read(BinaryBitmap::new(LocalBinarizer::new(source)))
+        read(&LocalBinarizer::new(source))
     }
 }
 
-fn read<B: Binarizer>(mut bitmap: BinaryBitmap<B>) -> Vec<Candidate> {
-    let hints = DecodeHints {
-        TryHarder: Some(true),
-        PossibleFormats: Some(HashSet::from([BarcodeFormat::QR_CODE])),
-        ..DecodeHints::default()
-    };
-    let Ok(results) = QrReader.decode_multiple_with_hints(&mut bitmap, &hints) else {
+/// rxing's multi-symbol QR read (`QrReader::decode_multiple_with_hints` with try-harder,
+/// QR codes only), step by step through rxing's public parts so that the sampled grid's
+/// size, the module count, is kept: the reader's own results drop it.
+fn read<B: Binarizer>(binarizer: &B) -> Vec<Candidate> {
+    let Ok(binary) = binarizer.get_black_matrix() else {
         return Vec::new();
     };
-    results
-        .iter()
-        .filter(|r| *r.getBarcodeFormat() == BarcodeFormat::QR_CODE)
-        .filter_map(|r| {
-            let points = r.getPoints();
-            let corner = |i: usize| {
-                points
-                    .get(i)
-                    .map(|p| PixelPoint::new(f64::from(p.x), f64::from(p.y)))
-            };
-            // rxing lists the quadrilateral as top-left, top-right, bottom-left, bottom-right.
-            let corners_px = [corner(0)?, corner(1)?, corner(3)?, corner(2)?];
-            Some(Candidate {
-                corners_px,
-                payload: Some(r.getRawBytes().to_vec()),
-                text: Some(r.getText().to_owned()),
-                module_count: None,
-                backend: Backend::Rxing,
-            })
-        })
-        .collect()
+    let mut patterns = FindFinderPatterns(binary, true, 0);
+    let mut used: Vec<ConcentricPattern> = Vec::new();
+    let mut found = Vec::new();
+    for set in GenerateFinderPatternSets(&mut patterns) {
+        if [set.bl, set.tl, set.tr].iter().any(|p| used.contains(p)) {
+            continue;
+        }
+        let Ok(sampled) = SampleQR(binary, &set) else {
+            continue;
+        };
+        let decoded = match Decode(sampled.getBits()) {
+            Ok(d) if d.isValid() => d,
+            _ => continue,
+        };
+        used.extend([set.bl, set.tl, set.tr]);
+        let module_count = usize::try_from(sampled.getBits().getWidth()).ok();
+        let result =
+            RXingResult::with_decoder_result(decoded, sampled.getPoints(), BarcodeFormat::QR_CODE);
+        let points = result.getPoints();
+        let corner = |i: usize| {
+            points
+                .get(i)
+                .map(|p| PixelPoint::new(f64::from(p.x), f64::from(p.y)))
+        };
+        // rxing lists the quadrilateral as top-left, top-right, bottom-left, bottom-right.
+        let (Some(tl), Some(tr), Some(bl), Some(br)) = (corner(0), corner(1), corner(2), corner(3))
+        else {
+            continue;
+        };
+        found.push(Candidate {
+            corners_px: [tl, tr, br, bl],
+            payload: Some(result.getRawBytes().to_vec()),
+            text: Some(result.getText().to_owned()),
+            module_count,
+            backend: Backend::Rxing,
+        });
+    }
+    found
 }
 
 /// Side of the blocks of the local binariser, px.
@@ -97,11 +114,12 @@ const WORD_BITS: usize = usize::BITS as usize;
 
 /// rxing's `HybridBinarizer` (ZXing's local block thresholding), bit for bit: a black point
 /// per 8 × 8 block, each block thresholded at the mean black point of the 5 × 5 blocks
-/// around it. rxing sets the matrix one bit at a time; here each pixel's threshold is
-/// written into a plane first (the largest threshold of the blocks covering it: the last
-/// block of a row or column overlaps its neighbour, and a pixel that either block calls
-/// black is black) and the bits are packed a word at a time. Row queries (1-D readers)
-/// and images under 40 px go to the global-histogram binariser, as in rxing.
+/// around it. rxing sets the matrix one bit at a time; here each block row's thresholds are
+/// spread over the pixel columns once (the largest threshold of the blocks covering a pixel:
+/// the last block of a row or column overlaps its neighbour, and a pixel that either block
+/// calls black is black), and each pixel row is compared and packed a word at a time. Row
+/// queries (1-D readers) and images under 40 px go to the global-histogram binariser, as in
+/// rxing.
 pub struct LocalBinarizer<LS: LuminanceSource> {
     ghb: GlobalHistogramBinarizer<LS>,
     matrix: Option<BitMatrix>,
@@ -123,22 +141,27 @@ impl<LS: LuminanceSource> LocalBinarizer<LS> {
 fn black_points(lum: &[u8], width: usize, height: usize, sub_w: usize, sub_h: usize) -> Vec<u32> {
     let (max_x, max_y) = (width - BLOCK_PX, height - BLOCK_PX);
     let mut points = vec![0u32; sub_w * sub_h];
+    // Per pixel column of a block row: sum, min and max over its 8 pixel rows (a whole row
+    // at a time, which vectorises), then per block over its 8 columns.
+    let (mut sums, mut mins, mut maxs) = (vec![0u16; width], vec![0u8; width], vec![0u8; width]);
     for by in 0..sub_h {
         let y0 = (by * BLOCK_PX).min(max_y);
+        sums.fill(0);
+        mins.fill(u8::MAX);
+        maxs.fill(u8::MIN);
+        for row in lum[y0 * width..].chunks_exact(width).take(BLOCK_PX) {
+            for (((s, lo), hi), &p) in sums.iter_mut().zip(&mut mins).zip(&mut maxs).zip(row) {
+                *s += u16::from(p);
+                *lo = (*lo).min(p);
+                *hi = (*hi).max(p);
+            }
+        }
         for bx in 0..sub_w {
             let x0 = (bx * BLOCK_PX).min(max_x);
-            let (mut sum, mut min, mut max) = (0u32, u8::MAX, u8::MIN);
-            for r in 0..BLOCK_PX {
-                let start = (y0 + r) * width + x0;
-                let Some(eight) = lum.get(start..start + BLOCK_PX) else {
-                    continue;
-                };
-                for &p in eight {
-                    sum += u32::from(p);
-                    min = min.min(p);
-                    max = max.max(p);
-                }
-            }
+            let columns = x0..x0 + BLOCK_PX;
+            let sum: u32 = sums[columns.clone()].iter().map(|&s| u32::from(s)).sum();
+            let min = mins[columns.clone()].iter().fold(u8::MAX, |a, &b| a.min(b));
+            let max = maxs[columns].iter().fold(u8::MIN, |a, &b| a.max(b));
             // rxing stops tracking min and max once the range exceeds the limit; the test
             // below only asks whether it did, so the full range decides the same.
             let mut average = sum >> 6;
@@ -165,12 +188,45 @@ fn local_threshold(lum: &[u8], width: usize, height: usize) -> Option<BitMatrix>
     if width < 5 * BLOCK_PX || height < 5 * BLOCK_PX || lum.len() != width * height {
         return None;
     }
+    let (sub_h, max_y) = (height.div_ceil(BLOCK_PX), height - BLOCK_PX);
+    let row_thresholds = block_row_thresholds(lum, width, height);
+    let last_block_row = row_thresholds.chunks_exact(width).last()?;
+    let mut matrix =
+        BitMatrix::new(u32::try_from(width).ok()?, u32::try_from(height).ok()?).ok()?;
+    let mut bits = BitArray::with_size(width);
+    let mut overlap = vec![0u8; width];
+    // 0/1 per pixel, padded with zeros to whole words.
+    let mut black = vec![0u8; width.next_multiple_of(WORD_BITS)];
+    for (y, lum_row) in lum.chunks_exact(width).enumerate() {
+        let by = y / BLOCK_PX;
+        let mut t_row = row_thresholds.get(by * width..(by + 1) * width)?;
+        if y >= max_y && by + 1 < sub_h {
+            // Rows that the last block row shares with its neighbour.
+            for ((o, &a), &b) in overlap.iter_mut().zip(t_row).zip(last_block_row) {
+                *o = a.max(b);
+            }
+            t_row = &overlap;
+        }
+        for ((b, &p), &t) in black.iter_mut().zip(lum_row).zip(t_row) {
+            *b = u8::from(p <= t);
+        }
+        for (w, flags) in black.chunks_exact(WORD_BITS).enumerate() {
+            bits.setBulk(w * WORD_BITS, pack_flags(flags));
+        }
+        matrix.setRow(u32::try_from(y).ok()?, &bits);
+    }
+    Some(matrix)
+}
+
+/// Each block row's threshold per pixel column (`sub_h` rows of `width`): the mean black
+/// point of the 5 × 5 blocks around each block, the larger of two where the last block
+/// column overlaps its neighbour (a pixel that either block calls black is black).
+fn block_row_thresholds(lum: &[u8], width: usize, height: usize) -> Vec<u8> {
     let (sub_w, sub_h) = (width.div_ceil(BLOCK_PX), height.div_ceil(BLOCK_PX));
-    let (max_x, max_y) = (width - BLOCK_PX, height - BLOCK_PX);
+    let max_x = width - BLOCK_PX;
     let points = black_points(lum, width, height, sub_w, sub_h);
-    let mut threshold = vec![0u8; width * height];
-    for by in 0..sub_h {
-        let y0 = (by * BLOCK_PX).min(max_y);
+    let mut thresholds = vec![0u8; sub_h * width];
+    for (by, row) in thresholds.chunks_exact_mut(width).enumerate() {
         let top = by.clamp(2, sub_h - 3);
         for bx in 0..sub_w {
             let x0 = (bx * BLOCK_PX).min(max_x);
@@ -185,41 +241,25 @@ fn local_threshold(lum: &[u8], width: usize, height: usize) -> Option<BitMatrix>
             // Black points are grey levels, so is their mean; were one larger, every pixel
             // would be at or below it, as at 255.
             let t = u8::try_from(sum / 25).unwrap_or(u8::MAX);
-            for row in threshold[y0 * width..].chunks_mut(width).take(BLOCK_PX) {
-                for v in &mut row[x0..x0 + BLOCK_PX] {
-                    *v = (*v).max(t);
-                }
+            for v in &mut row[x0..x0 + BLOCK_PX] {
+                *v = (*v).max(t);
             }
         }
     }
-    let mut matrix =
-        BitMatrix::new(u32::try_from(width).ok()?, u32::try_from(height).ok()?).ok()?;
-    let mut bits = BitArray::with_size(width);
-    let mut black = vec![0u8; width.next_multiple_of(WORD_BITS)];
-    for (y, (lum_row, t_row)) in lum
-        .chunks_exact(width)
-        .zip(threshold.chunks_exact(width))
+    thresholds
+}
+
+/// A word of 0/1 bytes as bits (bit k = byte k), eight bytes per multiplication.
+fn pack_flags(flags: &[u8]) -> usize {
+    flags
+        .chunks_exact(8)
         .enumerate()
-    {
-        for ((b, &p), &t) in black.iter_mut().zip(lum_row).zip(t_row) {
-            *b = u8::from(p <= t);
-        }
-        for (w, chunk) in black.chunks_exact(WORD_BITS).enumerate() {
-            // Eight 0/1 bytes to eight bits (bit k = byte k) by one multiplication.
-            let word = chunk
-                .chunks_exact(8)
-                .enumerate()
-                .fold(0usize, |acc, (k, eight)| {
-                    let mut le = [0u8; 8];
-                    le.copy_from_slice(eight);
-                    let byte = u64::from_le_bytes(le).wrapping_mul(0x0102_0408_1020_4080) >> 56;
-                    acc | (usize::try_from(byte).unwrap_or(0) << (8 * k))
-                });
-            bits.setBulk(w * WORD_BITS, word);
-        }
-        matrix.setRow(u32::try_from(y).ok()?, &bits);
-    }
-    Some(matrix)
+        .fold(0usize, |acc, (k, eight)| {
+            let mut le = [0u8; 8];
+            le.copy_from_slice(eight);
+            let byte = u64::from_le_bytes(le).wrapping_mul(0x0102_0408_1020_4080) >> 56;
+            acc | (usize::try_from(byte).unwrap_or(0) << (8 * k))
+        })
 }
 
 impl<LS: LuminanceSource> Binarizer for LocalBinarizer<LS> {
