@@ -2,8 +2,9 @@
 //!
 //! Backends return whole-pixel corners (rqrr, rxing, zxing-cpp). Starting from them:
 //!
-//! 1. **Module count** N: from the backend when it knows the version (rqrr, zxing-cpp),
-//!    otherwise the N whose function patterns (finders, separators, timing) match best.
+//! 1. **Module count** N: from the backend when it knows the version (every backend's own
+//!    reads do), otherwise the N whose function patterns (finders, separators, timing)
+//!    match best.
 //! 2. **Module map**: the function patterns (three finders, separators, timing) are known;
 //!    the other modules are read at their centres through the current homography.
 //! 3. **Edge observations**: across every module boundary on the symbol's outer sides and
