@@ -54,6 +54,12 @@ fn photo(scene: &Scene, seed: u64) -> Rendered {
     render(scene, &effects).expect("renders")
 }
 
+/// The bytes of a file in `tests/fixtures/`.
+fn fixture(name: &str) -> Vec<u8> {
+    let path = format!("{}/tests/fixtures/{name}", env!("CARGO_MANIFEST_DIR"));
+    std::fs::read(&path).unwrap_or_else(|e| panic!("fixture {path}: {e}"))
+}
+
 fn max_corner_error_px(found: &[[f64; 2]; 4], truth: &[[f64; 2]; 4]) -> f64 {
     found
         .iter()
@@ -363,11 +369,7 @@ fn asking_for_an_unbuilt_detector_is_a_clear_422() {
 /// nothing found; `auto` still reads the code with another backend.
 #[test]
 fn rqrr_issue_54_panic_is_contained_as_no_detection() {
-    let bytes = std::fs::read(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/fixtures/rqrr-issue-54-qrcode-6-7.png"
-    ))
-    .expect("fixture");
+    let bytes = fixture("rqrr-issue-54-qrcode-6-7.png");
     let image = decode_gray(&bytes, &DecodeLimits::default()).expect("decodes");
     let rqrr = detect_codes(&image, DetectorChoice::Only(Backend::Rqrr)).expect("built");
     assert!(rqrr.is_empty(), "rqrr's panic is no detection");
@@ -566,11 +568,7 @@ fn refinement_converges_from_the_corners_of_a_half_scale_read() {
 /// one before is dropped, and the grid of the pass before still reads.
 #[test]
 fn a_diverging_refinement_keeps_the_pass_before_and_the_photo_still_reads() {
-    let bytes = std::fs::read(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/tests/fixtures/zxing-cpp-qrcode-4-08.webp"
-    ))
-    .expect("fixture");
+    let bytes = fixture("zxing-cpp-qrcode-4-08.webp");
     let image = decode_gray(&bytes, &DecodeLimits::default()).expect("decodes");
     let codes = detect_codes(&image, DetectorChoice::Auto).expect("built");
     let texts: Vec<_> = codes

@@ -706,6 +706,14 @@ pub fn estimate_module_count(image: &GrayImage, corners: &[PixelPoint; 4]) -> Op
     best.filter(|(s, _)| *s > 0.3).map(|(_, n)| n)
 }
 
+/// The largest distance between corresponding corners of two quads, px.
+fn largest_move_px(a: &[PixelPoint; 4], b: &[PixelPoint; 4]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| (p.0 - q.0).norm())
+        .fold(0.0, f64::max)
+}
+
 /// Refines a backend's corners (qr order). `module_count` is N when the backend knows it.
 pub fn refine_corners(
     image: &GrayImage,
@@ -729,12 +737,8 @@ pub fn refine_corners(
     if ppm_u.min(ppm_v) < MIN_PX_PER_MODULE {
         return unrefined(RefineStatus::TooSmall, Some(n));
     }
-    let nf = n as f64;
-    let corners_of = |h: &Homography| {
-        [(0.0, 0.0), (nf, 0.0), (nf, nf), (0.0, nf)].map(|(u, v)| h.map(ModulePoint::new(u, v)))
-    };
     let mut obs = Vec::new();
-    let mut corners_px = corners_of(&h);
+    let mut corners_px = h.corners(n as f64);
     let mut last_step_px = f64::INFINITY;
     for pass in 0..=MAX_FINAL_PASSES {
         let scan = pass == 0;
@@ -746,12 +750,8 @@ pub fn refine_corners(
         let Some(next_h) = fit_homography(&pass_obs, &h) else {
             return unrefined(RefineStatus::TooFewEdges, Some(n));
         };
-        let next = corners_of(&next_h);
-        let step_px = next
-            .iter()
-            .zip(&corners_px)
-            .map(|(a, b)| (a.0 - b.0).norm())
-            .fold(0.0, f64::max);
+        let next = next_h.corners(n as f64);
+        let step_px = largest_move_px(&next, &corners_px);
         if pass > 1 && step_px >= last_step_px {
             // Not converging (a hard image): keep the pass before.
             break;
@@ -762,11 +762,7 @@ pub fn refine_corners(
         }
     }
     let module_px = (ppm_u + ppm_v) / 2.0;
-    let moved = corners_px
-        .iter()
-        .zip(backend_corners)
-        .map(|(a, b)| (a.0 - b.0).norm())
-        .fold(0.0, f64::max);
+    let moved = largest_move_px(&corners_px, backend_corners);
     if moved.is_nan() || moved > MAX_MOVE_MODULES * module_px.max(1.5) {
         return unrefined(RefineStatus::MovedTooFar, Some(n));
     }

@@ -78,13 +78,13 @@ impl Homography {
     /// The homography taking the symbol's corners (0, 0), (n, 0), (n, n), (0, n) onto four
     /// image corners in qr order (TL, TR, BR, BL).
     pub fn from_corners(corners_qr: &[PixelPoint; 4], n_modules: f64) -> Option<Self> {
-        let model = [
-            ModulePoint::new(0.0, 0.0),
-            ModulePoint::new(n_modules, 0.0),
-            ModulePoint::new(n_modules, n_modules),
-            ModulePoint::new(0.0, n_modules),
-        ];
-        Self::fit(&model, corners_qr)
+        Self::fit(&symbol_corners(n_modules), corners_qr)
+    }
+
+    /// The image of the symbol's corners (0, 0), (n, 0), (n, n), (0, n), qr order: the
+    /// inverse of [`Homography::from_corners`].
+    pub fn corners(&self, n_modules: f64) -> [PixelPoint; 4] {
+        symbol_corners(n_modules).map(|m| self.map(m))
     }
 
     /// Maps a module point into the image.
@@ -129,6 +129,16 @@ fn normalise(points: impl Iterator<Item = (f64, f64)>) -> (Matrix3<f64>, Vec<(f6
     (t, out)
 }
 
+/// The corners of an n-module symbol in module coordinates, qr order (TL, TR, BR, BL).
+fn symbol_corners(n_modules: f64) -> [ModulePoint; 4] {
+    [
+        ModulePoint::new(0.0, 0.0),
+        ModulePoint::new(n_modules, 0.0),
+        ModulePoint::new(n_modules, n_modules),
+        ModulePoint::new(0.0, n_modules),
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -142,8 +152,9 @@ mod tests {
             PixelPoint::new(90.5, 240.0),
         ];
         let h = Homography::from_corners(&corners, 21.0).expect("a quad");
-        let br = h.map(ModulePoint::new(21.0, 21.0));
-        assert!((br.0 - corners[2].0).norm() < 1e-9);
+        for (mapped, given) in h.corners(21.0).iter().zip(&corners) {
+            assert!((mapped.0 - given.0).norm() < 1e-9);
+        }
         let back = h.unmap(PixelPoint::new(170.0, 180.0));
         let again = h.map(back);
         assert!((again.0 - PixelPoint::new(170.0, 180.0).0).norm() < 1e-9);

@@ -10,7 +10,7 @@
 //!   to whole pixels anyway; [`super::corners`] refines it.
 
 use super::decode::GrayImage;
-use super::homography::{Homography, ModulePoint};
+use super::homography::Homography;
 use super::{Backend, Candidate, Detector};
 use crate::geometry::frames::PixelPoint;
 
@@ -21,13 +21,7 @@ pub struct RqrrDetector;
 /// Corners in qr order from rqrr's bounds of a grid of `n` modules, moved one module in.
 pub fn corners_from_rqrr_bounds(bounds: &[PixelPoint; 4], n: usize) -> Option<[PixelPoint; 4]> {
     let n = n as f64;
-    let h = Homography::from_corners(bounds, n + 1.0)?;
-    Some([
-        h.map(ModulePoint::new(0.0, 0.0)),
-        h.map(ModulePoint::new(n, 0.0)),
-        h.map(ModulePoint::new(n, n)),
-        h.map(ModulePoint::new(0.0, n)),
-    ])
+    Some(Homography::from_corners(bounds, n + 1.0)?.corners(n))
 }
 
 fn detect_unguarded(image: &GrayImage) -> Vec<Candidate> {

@@ -27,7 +27,7 @@
 //! edges). A caller's `initial_z_mm` replaces all of them with the paper's equal-depth start.
 
 use super::iterative::side_errors_mm;
-use super::{TraceStep, ippe, lm};
+use super::{TraceStep, ippe, lm, refine};
 use crate::geometry::{
     frames::NormalizedPoint,
     marker::{EDGES, Marker},
@@ -83,21 +83,12 @@ pub fn similar_triangles_depth_mm(rays: &[NormalizedPoint; 4], marker: &Marker) 
 /// pose puts a corner at or behind the camera.
 pub fn planar_pose_depths_mm(rays: &[NormalizedPoint; 4], marker: &Marker) -> Option<[f64; 4]> {
     let model = ippe::centred_model(marker);
-    let corners = |pose: &ippe::CentredPose| model.map(|m| pose.r * m + pose.centre_mm);
-    let squared_error = |points: &[Vector3<f64>; 4]| -> f64 {
-        points
-            .iter()
-            .zip(rays)
-            .map(|(p, n)| (p.x / p.z - n.x()).powi(2) + (p.y / p.z - n.y()).powi(2))
-            .sum()
-    };
-    let [a, b] = ippe::candidates(rays, marker)?.map(|pose| corners(&pose));
-    let best = if squared_error(&a) <= squared_error(&b) {
-        a
-    } else {
-        b
-    };
-    let z = best.map(|p| p.z);
+    // Reprojection error in normalised units (the candidates' ranking needs no focal length).
+    let unit = refine::PixelScale { fx: 1.0, fy: 1.0 };
+    let [a, b] = ippe::candidates(rays, marker)?;
+    let error = |pose: &ippe::CentredPose| refine::cost(pose, &model, rays, unit);
+    let best = if error(&a) <= error(&b) { a } else { b };
+    let z = model.map(|m| (best.r * m + best.centre_mm).z);
     z.iter().all(|v| v.is_finite() && *v > 0.0).then_some(z)
 }
 

@@ -61,7 +61,7 @@ fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
 }
 
 /// Sum of squared pixel residuals; infinite when a corner is at or behind the camera.
-fn cost(
+pub(crate) fn cost(
     pose: &CentredPose,
     model: &[Vector3<f64>],
     rays: &[NormalizedPoint],
