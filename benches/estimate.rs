@@ -9,7 +9,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use qrpose::api::{estimate_corners, request::CornersRequest};
-use qrpose::estimate::{EstimatorParams, Method, estimate_pose};
+use qrpose::estimate::{Method, ValidSolver, estimate_pose};
 use qrpose::geometry::{marker::CornerOrder, quad::ImageQuad};
 use qrpose::sim::dataset::{DatasetSpec, generate};
 use std::hint::black_box;
@@ -32,7 +32,7 @@ fn per_method(c: &mut Criterion) {
         .collect();
     let mut group = c.benchmark_group("estimate");
     for method in [Method::Paper, Method::DepthNewton, Method::Reprojection] {
-        let params = EstimatorParams::default().with_method(method);
+        let params = ValidSolver::default_for(method);
         let mut i = 0;
         group.bench_function(method.as_str(), |b| {
             b.iter(|| {

@@ -17,7 +17,7 @@
 
 use nalgebra::{Rotation3, Unit, Vector3};
 use qrpose::detect::{Backend, DetectedCode, DetectorChoice, decode, detect_codes};
-use qrpose::estimate::{EstimatorParams, estimate_planar_points, estimate_pose};
+use qrpose::estimate::{ValidSolver, estimate_planar_points, estimate_pose};
 use qrpose::geometry::{
     camera::Camera,
     euler::angle_between,
@@ -237,7 +237,7 @@ fn evaluate(case: &Case, truth: &qrpose::render::GroundTruth, codes: &[DetectedC
         e.corner_err.push((code.corners_px()[k].0 - t.0).norm());
     }
     let s = &case.scene;
-    let params = EstimatorParams::default();
+    let params = ValidSolver::default();
     if let Ok(quad) = ImageQuad::try_new(*code.corners_px(), CornerOrder::Qr)
         && let Ok(est) = estimate_pose(&quad, &s.camera, &s.marker, &params)
     {

@@ -12,7 +12,7 @@
 //! flagged (what trusting unflagged poses risks), and the share of wrong picks the flag
 //! catches; then the probability's calibration (predicted against observed wrong rate).
 
-use qrpose::estimate::{DISTINCT_ROTATION_DEG, EstimatorParams, estimate_pose};
+use qrpose::estimate::{DISTINCT_ROTATION_DEG, ReprojectionParams, Solver, estimate_pose};
 use qrpose::geometry::{euler::angle_between, marker::CornerOrder, quad::ImageQuad};
 use qrpose::sim::dataset::{DatasetSpec, generate};
 
@@ -49,7 +49,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..DatasetSpec::default()
         };
         let (camera, marker) = (spec.camera()?, spec.marker()?);
-        let params = EstimatorParams::default().with_corner_sigma_px(sigma_px);
+        let params = Solver::Reprojection(ReprojectionParams {
+            corner_sigma_px: sigma_px,
+            ..ReprojectionParams::default()
+        })
+        .validate()
+        .expect("a valid corner noise");
         let mut records = Vec::new();
         for c in generate(&spec)? {
             let quad = ImageQuad::try_new(c.noisy_px, CornerOrder::Qr)?;

@@ -6,7 +6,7 @@
 //! error in mm, converged, ambiguous), and prints a summary. `scripts/accuracy_corners.py`
 //! runs it and adds OpenCV's solvePnP on the same corners.
 
-use qrpose::estimate::{EstimatorParams, Method, Warning, estimate_pose};
+use qrpose::estimate::{Method, ValidSolver, Warning, estimate_pose};
 use qrpose::geometry::{euler::angle_between, marker::CornerOrder, quad::ImageQuad};
 use qrpose::sim::dataset::{DatasetSpec, generate, to_csv};
 use qrpose::sim::report::quantile;
@@ -45,7 +45,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     println!("|---|---|---|---|");
     for method in [Method::Reprojection, Method::DepthNewton, Method::Paper] {
-        let params = EstimatorParams::default().with_method(method);
+        let params = ValidSolver::default_for(method);
         let (mut rot, mut pos, mut converged) = (Vec::new(), Vec::new(), 0usize);
         for (i, c) in cases.iter().enumerate() {
             let quad = ImageQuad::try_new(c.noisy_px, CornerOrder::Qr)?;

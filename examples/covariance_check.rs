@@ -10,7 +10,7 @@
 //! `cargo run --release --example covariance_check`
 
 use nalgebra::{Matrix6, Vector3, Vector6};
-use qrpose::estimate::{EstimatorParams, estimate_pose};
+use qrpose::estimate::{ReprojectionParams, Solver, estimate_pose};
 use qrpose::geometry::{
     camera::Camera,
     euler::EulerXyz,
@@ -59,7 +59,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .ok_or("behind the camera")?;
         let noise = Normal::new(0.0, sigma)?;
         let mut rng = StdRng::seed_from_u64(3);
-        let params = EstimatorParams::default().with_corner_sigma_px(sigma);
+        let params = Solver::Reprojection(ReprojectionParams {
+            corner_sigma_px: sigma,
+            ..ReprojectionParams::default()
+        })
+        .validate()
+        .expect("a valid corner noise");
         let (mut errors, mut reported, n) = (Vec::new(), Matrix6::zeros(), 2000);
         let (mut mirror, mut mirror_flagged) = (0, 0);
         for _ in 0..n {

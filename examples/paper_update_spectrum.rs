@@ -3,7 +3,7 @@
 //! `cargo run --release --example paper_update_spectrum`
 //!
 //! Near the true depths z*, one simultaneous update is z ← z + k·A·e(z), with A the 4×6
-//! averaging of the three edges at each corner (Table 2 as SPEC section 2 reads it) and
+//! averaging of the three edges at each corner (Table 2 as docs/paper-method.md reads it) and
 //! e the six condition errors (Eqs. 10-11). Linearised, the error δ = z − z* evolves as
 //! δ ← (I + k·A·E)·δ with E = ∂e/∂z. The iteration converges locally only if every
 //! eigenvalue μ = 1 + k·λ of that matrix has |μ| < 1, and an eigenvalue with |μ| close to 1

@@ -5,7 +5,7 @@
 //! `cargo run --release --example pose_timing -- [CSV] [METHOD]` (run by
 //! scripts/bench_opencv_pose.sh); with METHOD only that solver.
 
-use qrpose::estimate::{EstimatorParams, Method, estimate_pose};
+use qrpose::estimate::{Method, ValidSolver, estimate_pose};
 use qrpose::geometry::{
     camera::Camera,
     frames::PixelPoint,
@@ -47,7 +47,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if only.as_deref().is_some_and(|m| m != method.as_str()) {
             continue;
         }
-        let params = EstimatorParams::default().with_method(method);
+        let params = ValidSolver::default_for(method);
         let mut per_call = Vec::new();
         for round in 0..17 {
             let start = Instant::now();

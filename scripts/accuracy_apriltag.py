@@ -6,8 +6,7 @@ AprilTag's pose code, same dataset, one markdown table.
 
 Expects target/accuracy/corners.csv and qrpose_results.csv (cargo run --release --example
 corner_accuracy) and the poses written by benches/apriltag/pose_bench.c, whose rows are
-"id,method,r11..r33,cx_mm,cy_mm,cz_mm", already in our marker frame (rotation of SPEC
-section 1, marker centre in the camera frame). Uses the virtual environment of
+"id,method,r11..r33,cx_mm,cy_mm,cz_mm", already in our marker frame (rotation of docs/conventions.md, marker centre in the camera frame). Uses the virtual environment of
 scripts/accuracy_corners.py (target/pyenv) for OpenCV; scripts/bench_apriltag_pose.sh runs it.
 """
 import csv

@@ -67,7 +67,7 @@ def opencv_results(header, rows):
     l = header["marker_mm"]
     h = l / 2.0
     k = np.array([[header["f_px"], 0, header["cx_px"]], [0, header["f_px"], header["cy_px"]], [0, 0, 1.0]])
-    # Our marker frame (SPEC section 1), corners in "qr" order: TL = P3, TR = P2, BR = P1, BL = P4.
+    # Our marker frame (docs/conventions.md), corners in "qr" order: TL = P3, TR = P2, BR = P1, BL = P4.
     ours = np.array([[-l, 0, 0], [0, 0, 0], [0, l, 0], [-l, l, 0]], dtype=np.float64)
     # IPPE_SQUARE's own frame: centred, y up; our centred frame with y and z flipped.
     square = np.array([[-h, h, 0], [h, h, 0], [h, -h, 0], [-h, -h, 0]], dtype=np.float64)

@@ -52,10 +52,10 @@ def order_like_truth(corners, truth):
 def pose_ippe(corners_qr, size_mm, cam):
     import cv2, numpy as np
     l = size_mm
-    # Marker frame of SPEC section 1: TL = P3 (-l,0,0), TR = P2 (0,0,0), BR = P1 (0,l,0), BL = P4.
+    # Marker frame of docs/conventions.md: TL = P3 (-l,0,0), TR = P2 (0,0,0), BR = P1 (0,l,0), BL = P4.
     obj = np.array([[-l, 0, 0], [0, 0, 0], [0, l, 0], [-l, l, 0]], dtype=np.float64)
     # IPPE_SQUARE wants the square centred in its own order: (-l/2, l/2), (l/2, l/2), (l/2, -l/2), (-l/2, -l/2)
-    # in a frame with y up; use the generic IPPE on the SPEC model instead (same solver family).
+    # in a frame with y up; use the generic IPPE on our marker model instead (same solver family).
     k = np.array([[cam["fx_px"], 0, cam["cx_px"]], [0, cam["fy_px"], cam["cy_px"]], [0, 0, 1]])
     ok, rvec, tvec = cv2.solvePnP(obj, np.asarray(corners_qr, dtype=np.float64), k, None,
                                   flags=cv2.SOLVEPNP_IPPE)

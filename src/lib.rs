@@ -18,10 +18,10 @@
 
 pub mod api;
 pub mod config;
-pub mod detect;
-pub mod estimate;
-pub mod geometry;
 pub mod http;
-pub mod render;
-pub mod sim;
 pub mod telemetry;
+
+pub use qrpose_core::{estimate, geometry};
+pub use qrpose_detect as detect;
+pub use qrpose_sim as sim;
+pub use qrpose_sim::render;

@@ -66,8 +66,8 @@ where
 
 /// Replaces the panic hook with one that logs the panic as one `error` event (message and
 /// location, inside the current request's span) instead of printing it to standard error.
-/// Panics stay contained where they were (`catch_unwind` in the detectors and the worker
-/// queue); this only changes where the report goes.
+/// Panics stay contained where they were ([`contain`](qrpose_detect::contain::contain) in
+/// the detectors and the worker queue); this only changes where the report goes.
 pub fn log_panics() {
     std::panic::set_hook(Box::new(|info| {
         let location = info
@@ -76,32 +76,7 @@ pub fn log_panics() {
         tracing::error!(
             location = location.as_deref().unwrap_or("unknown"),
             "contained panic: {}",
-            panic_message(info.payload())
+            qrpose_detect::contain::panic_message(info.payload())
         );
     }));
-}
-
-/// The text of a panic payload (`panic!` gives a `&str` or a `String`).
-fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
-    payload
-        .downcast_ref::<&str>()
-        .copied()
-        .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
-        .unwrap_or("(no message)")
-}
-
-#[cfg(test)]
-mod tests {
-    use super::panic_message;
-
-    #[test]
-    fn panic_payloads_give_their_text() {
-        let literal = std::panic::catch_unwind(|| panic!("plain")).expect_err("panics");
-        assert_eq!(panic_message(literal.as_ref()), "plain");
-        let n = 7;
-        let formatted = std::panic::catch_unwind(|| panic!("value {n}")).expect_err("panics");
-        assert_eq!(panic_message(formatted.as_ref()), "value 7");
-        let other = std::panic::catch_unwind(|| std::panic::panic_any(42_u8)).expect_err("panics");
-        assert_eq!(panic_message(other.as_ref()), "(no message)");
-    }
 }

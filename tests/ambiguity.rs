@@ -1,7 +1,9 @@
 //! The planar ambiguity as reported: the alternative pose, its probability, and the flag.
 
 use nalgebra::Vector3;
-use qrpose::estimate::{DISTINCT_ROTATION_DEG, EstimatorParams, Warning, estimate_pose};
+use qrpose::estimate::{
+    DISTINCT_ROTATION_DEG, ReprojectionParams, Solver, ValidSolver, Warning, estimate_pose,
+};
 use qrpose::geometry::{
     camera::Camera,
     euler::{EulerXyz, angle_between},
@@ -19,10 +21,7 @@ fn exact_quad(camera: &Camera, marker: &Marker, pose: &MarkerToCamera) -> ImageQ
 }
 
 /// The pose estimated from the exact corners of `pose`.
-fn estimate_exact(
-    pose: &MarkerToCamera,
-    params: &EstimatorParams,
-) -> qrpose::estimate::PoseEstimate {
+fn estimate_exact(pose: &MarkerToCamera, params: &ValidSolver) -> qrpose::estimate::PoseEstimate {
     let (camera, marker) = setup();
     estimate_pose(
         &exact_quad(&camera, &marker, pose),
@@ -46,7 +45,7 @@ fn a_clearly_tilted_marker_is_not_ambiguous() {
         EulerXyz::from_degrees(35.0, 10.0, 20.0).to_rotation(),
         Vector3::new(0.0, 0.0, 400.0),
     );
-    let e = estimate_exact(&pose, &EstimatorParams::default());
+    let e = estimate_exact(&pose, &ValidSolver::default());
     let a = e
         .diagnostics
         .ambiguity
@@ -70,7 +69,7 @@ fn a_small_near_frontal_marker_is_ambiguous_at_half_a_pixel_of_noise() {
         EulerXyz::from_degrees(4.0, 0.0, 30.0).to_rotation(),
         Vector3::new(20.0, 10.0, 1500.0),
     );
-    let e = estimate_exact(&pose, &EstimatorParams::default());
+    let e = estimate_exact(&pose, &ValidSolver::default());
     let a = e.diagnostics.ambiguity.expect("ambiguity");
     assert!(
         a.ambiguous && a.alternative_probability.is_some_and(|p| p > 0.3),
@@ -80,7 +79,12 @@ fn a_small_near_frontal_marker_is_ambiguous_at_half_a_pixel_of_noise() {
     // The mirror pose really is the same square tilted the other way about the view ray.
     assert!(angle_between(&a.alternative.rotation(), &pose.rotation()).to_degrees() > 4.0);
     // With a detector ten times more precise the same view is no longer ambiguous.
-    let precise = EstimatorParams::default().with_corner_sigma_px(0.01);
+    let precise = Solver::Reprojection(ReprojectionParams {
+        corner_sigma_px: 0.01,
+        ..ReprojectionParams::default()
+    })
+    .validate()
+    .expect("a valid corner noise");
     let e = estimate_exact(&pose, &precise);
     assert!(!e.diagnostics.ambiguity.expect("ambiguity").ambiguous);
 }
@@ -100,7 +104,7 @@ fn poses_left_unflagged_are_rarely_the_wrong_pick() {
     let (mut unflagged, mut unflagged_wrong, mut wrong) = (0, 0, 0);
     for c in generate(&spec).expect("dataset") {
         let quad = ImageQuad::try_new(c.noisy_px, CornerOrder::Qr).expect("valid quad");
-        let e = estimate_pose(&quad, &camera, &marker, &EstimatorParams::default()).expect("pose");
+        let e = estimate_pose(&quad, &camera, &marker, &ValidSolver::default()).expect("pose");
         let a = e.diagnostics.ambiguity.expect("ambiguity");
         // Candidates within DISTINCT_ROTATION_DEG are one solution: either pick costs less.
         let distinct = a.rotation_difference_rad.to_degrees() > DISTINCT_ROTATION_DEG;

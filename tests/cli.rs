@@ -223,3 +223,96 @@ fn estimate_stops_quietly_when_the_reader_closes_the_pipe() {
     assert!(!stderr.contains("panicked"), "stderr: {stderr}");
     assert_eq!(out.status.code(), Some(141), "stderr: {stderr}");
 }
+
+/// The query parameters of `POST /v1/pose/image` in the committed OpenAPI document.
+fn image_query_parameters() -> Vec<String> {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/openapi/openapi.json");
+    let doc = json(&std::fs::read(path).expect("the committed document"));
+    doc["paths"]["/v1/pose/image"]["post"]["parameters"]
+        .as_array()
+        .expect("parameters")
+        .iter()
+        .filter(|p| p["in"] == "query")
+        .map(|p| p["name"].as_str().expect("a name").to_owned())
+        .collect()
+}
+
+#[test]
+fn every_image_query_parameter_is_a_flag_of_estimate_under_the_same_name() {
+    let out = run(&["estimate", "--help"], None);
+    assert!(out.status.success());
+    let help = String::from_utf8_lossy(&out.stdout);
+    let parameters = image_query_parameters();
+    assert!(parameters.len() >= 20, "{parameters:?}");
+    for name in parameters {
+        let flag = format!("--{}", name.replace('_', "-"));
+        assert!(
+            help.split_whitespace().any(|word| word == flag),
+            "{name}: no {flag} in\n{help}"
+        );
+    }
+}
+
+/// Runs `estimate --image` on a file that is never read: flags are refused first.
+fn estimate_image_with(flags: &[&str]) -> Output {
+    let mut args = vec!["estimate", "--image", "unread.jpg"];
+    args.extend_from_slice(flags);
+    run(&args, None)
+}
+
+#[test]
+fn a_bad_flag_is_refused_with_the_query_parameters_problem_naming_the_flag() {
+    let cases: [(&[&str], &str, &str); 3] = [
+        (&["--fx-px", "wide"], "malformed_query", "fx_px"),
+        (&["--method", "newton"], "unknown_variant", "method"),
+        (&["--detector", "opencv"], "unknown_variant", "detector"),
+    ];
+    for (flags, code, field) in cases {
+        let out = estimate_image_with(flags);
+        assert_eq!(out.status.code(), Some(2), "{flags:?}");
+        let problem = json(&out.stderr);
+        assert_eq!(problem["code"], code, "{flags:?}: {problem}");
+        assert_eq!(problem["field"], field, "{flags:?}: {problem}");
+    }
+}
+
+#[test]
+fn an_out_of_range_flag_names_the_flag_not_a_json_pointer() {
+    let dir = std::env::temp_dir().join(format!("qrpose-cli-flags-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let image = dir.join("blank.png");
+    let blank = image::GrayImage::from_pixel(32, 32, image::Luma([255]));
+    blank.save(&image).expect("png written");
+    let path = image.to_str().expect("utf-8 path");
+    let cases: [(&[&str], &str, &str); 3] = [
+        (&["--fx-px", "-5"], "invalid_camera_parameter", "fx_px"),
+        (
+            &["--max-iterations", "0"],
+            "solver_parameter_out_of_range",
+            "max_iterations",
+        ),
+        (&["--k1", "nan"], "non_finite_number", "k1"),
+    ];
+    for (flags, code, field) in cases {
+        let defaults = [
+            ("--fx-px", "900"),
+            ("--fy-px", "900"),
+            ("--cx-px", "15.5"),
+            ("--cy-px", "15.5"),
+            ("--marker-size-mm", "40"),
+        ];
+        let mut args = vec!["estimate", "--image", path];
+        for (flag, value) in defaults {
+            if !flags.contains(&flag) {
+                args.extend([flag, value]);
+            }
+        }
+        args.extend_from_slice(flags);
+        let out = run(&args, None);
+        assert_eq!(out.status.code(), Some(2), "{flags:?}: {out:?}");
+        let problem = json(&out.stderr);
+        assert_eq!(problem["code"], code, "{flags:?}: {problem}");
+        assert_eq!(problem["field"], field, "{flags:?}: {problem}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -7,7 +7,7 @@
 //! the camera axes (left of R) and the centre's position, as the covariance is defined.
 
 use nalgebra::{Matrix6, Rotation3, Vector3, Vector6};
-use qrpose::estimate::{EstimatorParams, estimate_pose};
+use qrpose::estimate::{ReprojectionParams, Solver, estimate_pose};
 use qrpose::geometry::{
     camera::Camera,
     euler::EulerXyz,
@@ -37,7 +37,12 @@ fn reported_covariance_matches_the_spread_of_estimates() {
         .map(|m| camera.project(&truth.transform(&m)).expect("in front"));
     let noise = Normal::new(0.0, SIGMA_PX).expect("valid sigma");
     let mut rng = StdRng::seed_from_u64(11);
-    let params = EstimatorParams::default().with_corner_sigma_px(SIGMA_PX);
+    let params = Solver::Reprojection(ReprojectionParams {
+        corner_sigma_px: SIGMA_PX,
+        ..ReprojectionParams::default()
+    })
+    .validate()
+    .expect("a valid corner noise");
     let mut errors = Vec::with_capacity(DRAWS);
     let mut reported = Matrix6::zeros();
     for _ in 0..DRAWS {

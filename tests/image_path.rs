@@ -292,7 +292,7 @@ fn corners_is_the_default_and_finders_is_refused_for_paper() {
         ok.markers[0]
             .pose
             .as_ref()
-            .map(|p| p.diagnostics.method.as_str()),
+            .map(|p| qrpose::estimate::Method::from(p.diagnostics.method).as_str()),
         Some("paper")
     );
 }

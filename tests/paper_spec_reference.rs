@@ -1,4 +1,4 @@
-//! A second, deliberately plain implementation of SPEC section 2, written from the text alone,
+//! A second, deliberately plain implementation of docs/paper-method.md, written from the text alone,
 //! against which `method = "paper"` must agree to 1e-9 mm on random inputs and parameters.
 
 use nalgebra::{Rotation3, Vector3};
@@ -18,7 +18,7 @@ struct Reference {
     residuals: [f64; 6],
 }
 
-/// SPEC section 2, step by step. `xn` are the normalised corners P1..P4.
+/// docs/paper-method.md, step by step. `xn` are the normalised corners P1..P4.
 fn reference(xn: [[f64; 2]; 4], l: f64, z0: f64, k: f64, e_d: f64, n_max: u32) -> Reference {
     let edges = [(0, 1), (1, 2), (2, 3), (0, 3), (0, 2), (1, 3)];
     let lengths = [l, l, l, l, 2f64.sqrt() * l, 2f64.sqrt() * l];

@@ -1,5 +1,5 @@
 //! The paper's Tables 5-9 as named cases: P2 at (60, −50, z) for every rotation set at the
-//! angle of the table's "calculated" column, exact projection (SPEC section 3).
+//! angle of the table's "calculated" column, exact projection (docs/paper-method.md, The paper's simulation).
 
 use qrpose::estimate::Method;
 use qrpose::sim::tables::{PAPER_ROWS, estimate_row};

@@ -1,7 +1,7 @@
-//! The paper's simulation (SPEC section 3) on reduced grids, with exact figures; the full
+//! The paper's simulation (docs/paper-method.md, The paper's simulation) on reduced grids, with exact figures; the full
 //! grid is `#[ignore]`d (run with `cargo test --release -- --ignored`).
 
-use qrpose::estimate::{EstimatorParams, Method};
+use qrpose::estimate::Method;
 use qrpose::sim::{
     grid::{ANGLE_COUNT, ROTATION_SETS, rotation_set},
     run::{GridResult, GridSpec, run_grid},
@@ -20,7 +20,7 @@ fn reduced(sets: &[&str], distances_mm: &[f64], xy_stride: usize) -> GridSpec {
 }
 
 fn run(method: Method, spec: &GridSpec) -> GridResult {
-    run_grid(method, &EstimatorParams::default(), spec, &|| {}).expect("paper setup")
+    run_grid(method, spec, &|| {}).expect("paper setup")
 }
 
 /// (positions with max angle ≥ 0, solved cases) per panel.

@@ -27,7 +27,7 @@
 // Frames. AprilTag's tag frame: centred, x right, y down (as the tag is seen in the image),
 // z = x * y into the tag; det->p[i] are the images of tag points (-1,1), (1,1), (1,-1), (-1,-1)
 // (half-size units), i.e. BL, BR, TR, TL; det->H maps those tag points to pixels. Its camera frame
-// is OpenCV's (x right, y down, z forward). Our marker frame (SPEC section 1) has the same axes
+// is OpenCV's (x right, y down, z forward). Our marker frame (docs/conventions.md) has the same axes
 // with the origin at TR, so R_ours = R_apriltag and the marker centre is t.
 #define _POSIX_C_SOURCE 200809L
 #include <apriltag/apriltag.h>

@@ -52,7 +52,7 @@ int main(int argc, char** argv) {
     }
     const double l = h["marker_mm"], half = l / 2.0;
     cv::Matx33d K(h["f_px"], 0, h["cx_px"], 0, h["f_px"], h["cy_px"], 0, 0, 1);
-    // Marker frame of SPEC section 1 (qr order) and IPPE_SQUARE's own centred, y-up frame.
+    // Marker frame of docs/conventions.md (qr order) and IPPE_SQUARE's own centred, y-up frame.
     std::vector<cv::Point3d> ours = {{-l, 0, 0}, {0, 0, 0}, {0, l, 0}, {-l, l, 0}};
     std::vector<cv::Point3d> square = {{-half, half, 0}, {half, half, 0}, {half, -half, 0}, {-half, -half, 0}};
     struct Method {

@@ -5,14 +5,17 @@
 //! get wrong is refused here as a [`problem::Problem`]. No HTTP framework is named in this
 //! module.
 
+pub mod camera;
 pub mod image;
 pub mod problem;
+pub mod refusal;
 pub mod request;
 pub mod response;
 
 use crate::estimate::estimate_pose;
 use problem::Problem;
-use request::{CornersRequest, problem_from_estimate_error};
+use refusal::problem_from_estimate_error;
+use request::CornersRequest;
 use response::PoseResponse;
 use std::time::Instant;
 
@@ -25,7 +28,7 @@ pub fn estimate_corners(request: &CornersRequest) -> Result<PoseResponse, Proble
     let started = Instant::now();
     let valid = request.validate()?;
     let s = &valid.setup;
-    let estimate = estimate_pose(&valid.quad, &s.camera, &s.marker, &s.params)
+    let estimate = estimate_pose(&valid.quad, &s.camera, &s.marker, &s.solver)
         .map_err(|e| problem_from_estimate_error(e, valid.corners_pointer))?;
     let elapsed_us = started.elapsed().as_secs_f64() * 1e6;
     Ok(PoseResponse::new(
@@ -100,7 +103,7 @@ mod tests {
     #[test]
     fn accepts_the_base_request() {
         let r = run(&base()).expect("valid request");
-        assert_eq!(r.diagnostics.method, "reprojection");
+        assert_eq!(r.diagnostics.method, request::MethodDto::Reprojection);
         assert!(r.diagnostics.converged);
     }
 

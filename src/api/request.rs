@@ -5,16 +5,19 @@
 //! the JSON pointer of the field at fault. Unknown fields are refused rather than ignored, so
 //! that a typo (`max_iteration`) cannot silently fall back to a default.
 
+pub use super::camera::{CameraDto, DistortionDto};
 use super::problem::{ErrorCode, Problem};
+use super::refusal::{problem_from_estimate_error, problem_from_quad_error};
 use crate::estimate::{
-    DEFAULT_CORNER_SIGMA_PX, DEFAULT_GAIN, DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE_MM,
-    EstimateError, EstimatorParams, MAX_ITERATIONS_LIMIT, Method,
+    DEFAULT_CORNER_SIGMA_PX, DEFAULT_GAIN, DEFAULT_INITIAL_Z_MM, DEFAULT_MAX_ITERATIONS,
+    DEFAULT_TOLERANCE_MM, DepthNewtonParams, MAX_ITERATIONS_LIMIT, Method, PaperParams,
+    ReprojectionParams, Solver, ValidSolver,
 };
 use crate::geometry::{
-    camera::{Camera, CameraError, CameraParam, Distortion},
+    camera::Camera,
     frames::PixelPoint,
     marker::{CornerOrder, Marker, MarkerError},
-    quad::{ImageQuad, QuadError},
+    quad::ImageQuad,
 };
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -40,7 +43,9 @@ impl From<CornerOrderDto> for CornerOrder {
 }
 
 /// The pose solver.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema, clap::ValueEnum,
+)]
 #[serde(rename_all = "kebab-case")]
 pub enum MethodDto {
     /// The paper's iterative estimator as printed (Teoh et al. 2022, Eqs. 6-13).
@@ -62,55 +67,14 @@ impl From<MethodDto> for Method {
     }
 }
 
-/// Brown-Conrady lens distortion, OpenCV's coefficients and meaning. Omitted terms are 0.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct DistortionDto {
-    /// Radial r² coefficient.
-    #[serde(default)]
-    #[schema(example = -0.12)]
-    pub k1: f64,
-    /// Radial r⁴ coefficient.
-    #[serde(default)]
-    #[schema(example = 0.03)]
-    pub k2: f64,
-    /// Tangential coefficient p1.
-    #[serde(default)]
-    pub p1: f64,
-    /// Tangential coefficient p2.
-    #[serde(default)]
-    pub p2: f64,
-    /// Radial r⁶ coefficient.
-    #[serde(default)]
-    pub k3: f64,
-}
-
-/// Camera intrinsics, in exactly one of three forms:
-/// pixels (`fx_px, fy_px, cx_px, cy_px`); sensor (`focal_length_mm, pixel_size_um, cx_px,
-/// cy_px`, so fx = fy = focal length / pixel size); or, with `corners_mm` only, the paper's
-/// image plane (`focal_length_mm`, plus optionally `pixel_size_um` to get pixel diagnostics).
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct CameraDto {
-    /// Horizontal focal length, px.
-    #[schema(example = 1000.0)]
-    pub fx_px: Option<f64>,
-    /// Vertical focal length, px.
-    #[schema(example = 1000.0)]
-    pub fy_px: Option<f64>,
-    /// Principal point, horizontal, px (pixel centres are integers: the image centre of a
-    /// 1280-px-wide image is 639.5).
-    #[schema(example = 639.5)]
-    pub cx_px: Option<f64>,
-    /// Principal point, vertical, px.
-    #[schema(example = 359.5)]
-    pub cy_px: Option<f64>,
-    /// Lens focal length, mm (sensor or paper form).
-    pub focal_length_mm: Option<f64>,
-    /// Pixel pitch, µm (sensor form).
-    pub pixel_size_um: Option<f64>,
-    /// Lens distortion of the corner pixels; none when omitted.
-    pub distortion: Option<DistortionDto>,
+impl From<Method> for MethodDto {
+    fn from(m: Method) -> Self {
+        match m {
+            Method::Paper => MethodDto::Paper,
+            Method::DepthNewton => MethodDto::DepthNewton,
+            Method::Reprojection => MethodDto::Reprojection,
+        }
+    }
 }
 
 /// The printed code.
@@ -230,131 +194,20 @@ pub struct PoseSetup {
     pub camera: Camera,
     /// The marker.
     pub marker: Marker,
-    /// Solver parameters, range-checked.
-    pub params: EstimatorParams,
+    /// The solver, range-checked.
+    pub solver: ValidSolver,
     /// Image-plane mm per pixel when mm corners are converted to pixels.
     pub mm_per_px: Option<f64>,
 }
 
-/// The JSON pointer of a camera parameter below the camera object.
-fn camera_param_name(param: CameraParam) -> String {
-    if param.is_distortion() {
-        format!("distortion/{param}")
-    } else {
-        param.name().to_owned()
-    }
-}
-
-/// The problem for a refused camera parameter, under the JSON pointer `camera_pointer`.
-pub fn problem_from_camera_error(err: CameraError, camera_pointer: &str) -> Problem {
-    match err {
-        CameraError::NonFinite { param } => {
-            Problem::new(ErrorCode::NonFiniteNumber, err.to_string())
-                .with_field(format!("{camera_pointer}/{}", camera_param_name(param)))
-        }
-        CameraError::NonPositive { param, value } => Problem::new(
-            ErrorCode::InvalidCameraParameter,
-            format!("{} must be positive, got {value}", camera_param_name(param)),
-        )
-        .with_field(format!("{camera_pointer}/{}", camera_param_name(param))),
-        CameraError::UndistortionFailed { .. } => {
-            Problem::new(ErrorCode::UndistortionFailed, err.to_string())
-        }
-    }
-}
-
-fn incomplete(detail: impl Into<String>, field: impl Into<String>) -> Problem {
-    Problem::new(ErrorCode::IncompleteCamera, detail).with_field(field)
-}
-
-fn require(value: Option<f64>, name: &str, form: &str) -> Result<f64, Problem> {
-    value.ok_or_else(|| {
-        incomplete(
-            format!("the {form} form of the camera needs {name}"),
-            format!("/camera/{name}"),
-        )
-    })
-}
-
-impl CameraDto {
-    /// Builds the camera for corners in `unit`, and for mm corners with a pixel size the
-    /// mm-per-pixel scale that turns them into pixels.
-    ///
-    /// # Errors
-    /// `incomplete_camera` for a missing or conflicting form, `invalid_camera_parameter` or
-    /// `non_finite_number` for a bad value.
-    pub fn to_camera(&self, unit: CornersUnit) -> Result<(Camera, Option<f64>), Problem> {
-        let has_px = self.fx_px.is_some() || self.fy_px.is_some();
-        let has_sensor = self.focal_length_mm.is_some() || self.pixel_size_um.is_some();
-        let err = |e| problem_from_camera_error(e, "/camera");
-        let (camera, mm_per_px) = match unit {
-            CornersUnit::Px if has_px && has_sensor => {
-                return Err(incomplete(
-                    "give fx_px/fy_px or focal_length_mm/pixel_size_um, not both",
-                    "/camera",
-                ));
-            }
-            CornersUnit::Px if has_px => {
-                let fx = require(self.fx_px, "fx_px", "pixel")?;
-                let fy = require(self.fy_px, "fy_px", "pixel")?;
-                let cx = require(self.cx_px, "cx_px", "pixel")?;
-                let cy = require(self.cy_px, "cy_px", "pixel")?;
-                (Camera::from_pixels(fx, fy, cx, cy).map_err(err)?, None)
-            }
-            CornersUnit::Px if has_sensor => {
-                let f = require(self.focal_length_mm, "focal_length_mm", "sensor")?;
-                let pitch = require(self.pixel_size_um, "pixel_size_um", "sensor")?;
-                let cx = require(self.cx_px, "cx_px", "sensor")?;
-                let cy = require(self.cy_px, "cy_px", "sensor")?;
-                (
-                    Camera::from_focal_length(f, pitch, cx, cy).map_err(err)?,
-                    None,
-                )
-            }
-            CornersUnit::Px => {
-                return Err(incomplete(
-                    "the camera needs fx_px, fy_px, cx_px, cy_px or focal_length_mm, pixel_size_um, cx_px, cy_px",
-                    "/camera",
-                ));
-            }
-            CornersUnit::Mm => {
-                for (value, name) in [
-                    (self.fx_px, "fx_px"),
-                    (self.fy_px, "fy_px"),
-                    (self.cx_px, "cx_px"),
-                    (self.cy_px, "cy_px"),
-                ] {
-                    if value.is_some() {
-                        return Err(incomplete(
-                            format!(
-                                "corners_mm are relative to the principal point and take focal_length_mm, not {name}"
-                            ),
-                            format!("/camera/{name}"),
-                        ));
-                    }
-                }
-                let f = require(self.focal_length_mm, "focal_length_mm", "image-plane")?;
-                match self.pixel_size_um {
-                    Some(pitch) => {
-                        let camera = Camera::from_focal_length(f, pitch, 0.0, 0.0).map_err(err)?;
-                        (camera, Some(pitch * 1e-3))
-                    }
-                    None => (Camera::image_plane_mm(f).map_err(err)?, None),
-                }
-            }
-        };
-        let d = self.distortion.unwrap_or_default();
-        let distortion = Distortion::try_new(d.k1, d.k2, d.p1, d.p2, d.k3).map_err(err)?;
-        Ok((camera.with_distortion(distortion), mm_per_px))
-    }
-}
-
 impl SolverDto {
-    /// The validated solver parameters.
+    /// The method's [`Solver`], validated. Parameters the chosen method does not read
+    /// (`gain` with `reprojection`, say) are range-checked and then ignored, as documented
+    /// per field.
     ///
     /// # Errors
     /// `solver_parameter_out_of_range` naming the parameter.
-    pub fn to_params(&self) -> Result<EstimatorParams, Problem> {
+    pub fn to_solver(&self) -> Result<ValidSolver, Problem> {
         let max_iterations = u32::try_from(self.max_iterations)
             .ok()
             .filter(|n| (1..=MAX_ITERATIONS_LIMIT).contains(n))
@@ -368,68 +221,44 @@ impl SolverDto {
                 )
                 .with_field("/solver/max_iterations")
             })?;
-        let params = EstimatorParams {
-            method: self.method.into(),
-            initial_z_mm: self.initial_z_mm,
+        // Every parameter given is range-checked, also those the chosen method ignores
+        // (`gain` with `reprojection`): an out-of-range value is a client's mistake either way.
+        let paper = PaperParams {
+            initial_z_mm: self.initial_z_mm.unwrap_or(DEFAULT_INITIAL_Z_MM),
             gain: self.gain,
             tolerance_mm: self.tolerance_mm,
             max_iterations,
             trace: self.trace,
             corner_sigma_px: self.corner_sigma_px,
         };
-        params
+        let solver = match Method::from(self.method) {
+            Method::Paper => Solver::Paper(paper),
+            Method::DepthNewton => {
+                paper
+                    .validate()
+                    .map_err(|e| problem_from_estimate_error(e, "/corners_px"))?;
+                Solver::DepthNewton(DepthNewtonParams {
+                    initial_z_mm: self.initial_z_mm,
+                    max_iterations,
+                    trace: self.trace,
+                    corner_sigma_px: self.corner_sigma_px,
+                })
+            }
+            Method::Reprojection => {
+                paper
+                    .validate()
+                    .map_err(|e| problem_from_estimate_error(e, "/corners_px"))?;
+                Solver::Reprojection(ReprojectionParams {
+                    max_iterations,
+                    trace: self.trace,
+                    corner_sigma_px: self.corner_sigma_px,
+                })
+            }
+        };
+        solver
             .validate()
-            .map_err(|e| problem_from_estimate_error(e, "/corners_px"))?;
-        Ok(params)
+            .map_err(|e| problem_from_estimate_error(e, "/corners_px"))
     }
-}
-
-/// The problem for an estimator refusal; `corners_pointer` names the corner list.
-pub fn problem_from_estimate_error(err: EstimateError, corners_pointer: &str) -> Problem {
-    match err {
-        EstimateError::ParamOutOfRange {
-            param,
-            value,
-            min_exclusive,
-            max,
-        } => {
-            let name = param.name();
-            Problem::new(
-                ErrorCode::SolverParameterOutOfRange,
-                format!(
-                    "{name} must be greater than {min_exclusive} and at most {max}, got {value}"
-                ),
-            )
-            .with_field(format!("/solver/{name}"))
-        }
-        EstimateError::Undistortion { index, source } => {
-            Problem::new(ErrorCode::UndistortionFailed, source.to_string())
-                .with_field(format!("{corners_pointer}/{index}"))
-        }
-        EstimateError::PointCount { .. } => {
-            Problem::new(ErrorCode::CornerCount, err.to_string()).with_field(corners_pointer)
-        }
-        EstimateError::NoSolution { .. } => {
-            Problem::new(ErrorCode::NoSolution, err.to_string()).with_field(corners_pointer)
-        }
-    }
-}
-
-/// The problem for a refused quadrilateral; `corners_pointer` names the corner list.
-pub fn problem_from_quad_error(err: QuadError, corners_pointer: &str) -> Problem {
-    let (code, index) = match err {
-        QuadError::NonFinite { index } => (ErrorCode::NonFiniteNumber, Some(index)),
-        QuadError::Duplicate { second, .. } => (ErrorCode::DuplicateCorners, Some(second)),
-        QuadError::Collinear { indices } => (ErrorCode::CollinearCorners, Some(indices[2])),
-        QuadError::SelfIntersecting => (ErrorCode::SelfIntersectingCorners, None),
-        QuadError::NonConvex { index } => (ErrorCode::NonConvexCorners, Some(index)),
-        QuadError::Mirrored => (ErrorCode::MirroredCorners, None),
-    };
-    let field = match index {
-        Some(i) => format!("{corners_pointer}/{i}"),
-        None => corners_pointer.to_owned(),
-    };
-    Problem::new(code, err.to_string()).with_field(field)
 }
 
 impl MarkerDto {
@@ -458,7 +287,7 @@ pub fn pose_setup(
     Ok(PoseSetup {
         camera,
         marker: marker.to_marker()?,
-        params: solver.to_params()?,
+        solver: solver.to_solver()?,
         mm_per_px,
     })
 }

@@ -1,5 +1,6 @@
 //! Response bodies: the pose of one marker, with rotation and diagnostics.
 
+use super::request::MethodDto;
 use crate::estimate::{Ambiguity, Diagnostics, Method, PoseEstimate, TraceStep, Warning};
 use crate::geometry::{
     camera::{Camera, ImageUnit},
@@ -152,8 +153,8 @@ impl From<Warning> for WarningDto {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct DiagnosticsDto {
     /// The method used: `paper`, `depth-newton` or `reprojection`.
-    #[schema(example = "reprojection")]
-    pub method: String,
+    #[schema(value_type = String, example = "reprojection")]
+    pub method: MethodDto,
     /// Whether the method met its convergence criterion. A `false` still carries the last
     /// estimate.
     pub converged: bool,
@@ -241,7 +242,7 @@ impl RotationDto {
 impl DiagnosticsDto {
     fn new(d: &Diagnostics, camera: &Camera, marker_centre: &MarkerPoint, elapsed_us: f64) -> Self {
         Self {
-            method: d.method.as_str().to_owned(),
+            method: d.method.into(),
             converged: d.converged,
             iterations: d.iterations,
             convergence_error_mm: d.convergence_error_mm,
@@ -306,12 +307,7 @@ impl PoseResponse {
     }
 
     /// The method that produced this pose.
-    pub fn method(&self) -> Option<Method> {
-        match self.diagnostics.method.as_str() {
-            "paper" => Some(Method::Paper),
-            "depth-newton" => Some(Method::DepthNewton),
-            "reprojection" => Some(Method::Reprojection),
-            _ => None,
-        }
+    pub fn method(&self) -> Method {
+        self.diagnostics.method.into()
     }
 }

@@ -12,6 +12,10 @@ mod serve;
 mod simulate;
 
 use clap::{Parser, Subcommand};
+use qrpose::api::{
+    image::ImageQuery,
+    problem::{ErrorCode, Problem},
+};
 use std::process::ExitCode;
 
 /// Exit code for input the API would answer with a 4xx problem.
@@ -36,7 +40,7 @@ pub enum Command {
     Estimate(estimate::EstimateArgs),
     /// Reproduce the paper's simulation (Table 10, Figures 8-12, Tables 5-9).
     Simulate(simulate::SimulateArgs),
-    /// Run the HTTP service (SPEC section 4) until SIGTERM or SIGINT.
+    /// Run the HTTP service (docs/service.md) until SIGTERM or SIGINT.
     Serve(qrpose::config::ServeArgs),
     /// Print the OpenAPI document (what `openapi/openapi.json` holds).
     Openapi,
@@ -44,6 +48,45 @@ pub enum Command {
     Healthcheck(healthcheck::HealthcheckArgs),
     /// Render a synthetic photo of a QR code at a given pose; prints its ground truth.
     Render(render::RenderArgs),
+}
+
+/// A command-line mistake in one of `estimate --image`'s parameters as the problem document
+/// the same mistake in the query string gets (`unknown_variant` or `malformed_query`, with
+/// the parameter's name as `field`), on stderr with the bad-input exit code; any other
+/// mistake as clap reports it.
+pub fn report_parse_error(err: &clap::Error) -> ExitCode {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    let parameter = match err.get(ContextKind::InvalidArg) {
+        Some(ContextValue::String(arg)) => arg
+            .split_whitespace()
+            .next()
+            .and_then(|flag| flag.strip_prefix("--"))
+            .map(|flag| flag.replace('-', "_"))
+            .filter(|name| ImageQuery::parameter_names().contains(name)),
+        _ => None,
+    };
+    let value_error = matches!(
+        err.kind(),
+        ErrorKind::InvalidValue | ErrorKind::ValueValidation
+    );
+    let Some(parameter) = parameter.filter(|_| value_error) else {
+        // Help and version go to stdout with exit 0; usage errors to stderr with exit 2.
+        let _ = err.print();
+        return ExitCode::from(u8::try_from(err.exit_code()).unwrap_or(EXIT_BAD_INPUT));
+    };
+    let code = if err.get(ContextKind::ValidValue).is_some() {
+        ErrorCode::UnknownVariant
+    } else {
+        ErrorCode::MalformedQuery
+    };
+    let rendered = err.render().to_string();
+    let detail = rendered
+        .lines()
+        .next()
+        .unwrap_or_default()
+        .trim_start_matches("error: ")
+        .to_owned();
+    estimate::report_problem(&Problem::new(code, detail).with_field(parameter))
 }
 
 /// Runs the parsed command line.

@@ -1,9 +1,9 @@
-//! `qrpose simulate`: the paper's Section 8 experiment (SPEC section 3).
+//! `qrpose simulate`: the paper's Section 8 experiment (docs/paper-method.md, The paper's simulation).
 
 use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use qrpose::estimate::{EstimatorParams, Method};
+use qrpose::estimate::Method;
 use qrpose::sim::{
     grid::{DISTANCES_MM, ROTATION_SETS, rotation_set},
     report,
@@ -18,7 +18,7 @@ use std::process::ExitCode;
 pub enum Format {
     /// Table 10 beside the paper's, as text.
     Table,
-    /// SPEC section 5's JSON document.
+    /// JSON document of `docs/paper-method.md` (The `simulate` output).
     Json,
     /// One CSV row per set and distance.
     Csv,
@@ -145,12 +145,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<ExitCode> {
     let positions = spec.xy_indices().len().pow(2) * spec.sets.len() * spec.distances_mm.len();
     let bar = progress_bar(positions as u64);
     let started = std::time::Instant::now();
-    let result = run_grid(
-        args.method.into(),
-        &EstimatorParams::default(),
-        &spec,
-        &|| bar.inc(1),
-    )?;
+    let result = run_grid(args.method.into(), &spec, &|| bar.inc(1))?;
     bar.finish_and_clear();
     let elapsed = started.elapsed();
     match args.format {

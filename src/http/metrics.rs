@@ -15,6 +15,8 @@
 //! that scanning clients cannot create unbounded label values. A new per-endpoint metric is
 //! one field here, registered in [`Metrics::new`].
 
+use crate::api::response::PoseResponse;
+use crate::estimate;
 use axum::http::{Method, StatusCode};
 use prometheus_client::encoding::EncodeLabelSet;
 use prometheus_client::metrics::{
@@ -25,6 +27,27 @@ use prometheus_client::metrics::{
 };
 use prometheus_client::registry::{Registry, Unit};
 use std::time::Duration;
+
+/// What the metrics need to know of one answered pose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PoseOutcome {
+    /// The method that produced it.
+    pub method: estimate::Method,
+    /// Iterations run.
+    pub iterations: u32,
+    /// Whether the method converged.
+    pub converged: bool,
+}
+
+impl From<&PoseResponse> for PoseOutcome {
+    fn from(pose: &PoseResponse) -> Self {
+        Self {
+            method: pose.method(),
+            iterations: pose.diagnostics.iterations,
+            converged: pose.diagnostics.converged,
+        }
+    }
+}
 
 /// The content type of `GET /metrics`.
 pub const OPENMETRICS_TEXT: &str = "application/openmetrics-text; version=1.0.0; charset=utf-8";
@@ -195,7 +218,12 @@ impl Metrics {
     }
 
     /// Records one estimate's iterations and whether it converged.
-    pub fn observe_estimate(&self, method: &str, iterations: u32, converged: bool) {
+    pub fn observe_estimate(&self, outcome: PoseOutcome) {
+        let (method, iterations, converged) = (
+            outcome.method.as_str(),
+            outcome.iterations,
+            outcome.converged,
+        );
         let labels = MethodLabels {
             method: method.to_owned(),
         };
@@ -238,8 +266,16 @@ mod tests {
             StatusCode::OK,
             Duration::from_micros(300),
         );
-        metrics.observe_estimate("paper", 30, false);
-        metrics.observe_estimate("reprojection", 4, true);
+        metrics.observe_estimate(PoseOutcome {
+            method: estimate::Method::Paper,
+            iterations: 30,
+            converged: false,
+        });
+        metrics.observe_estimate(PoseOutcome {
+            method: estimate::Method::Reprojection,
+            iterations: 4,
+            converged: true,
+        });
         metrics.queue().rejected.inc();
         metrics.observe_codes_detected(0);
         metrics.observe_codes_detected(2);

@@ -1,4 +1,4 @@
-//! The HTTP service (SPEC section 4): the only module that names axum.
+//! The HTTP service (docs/service.md): the only module that names axum.
 //!
 //! [`router`] builds the whole application from an [`AppState`] without a socket (router
 //! tests call it with `tower::ServiceExt::oneshot`); [`serve`] runs it on a listener until a
@@ -10,6 +10,7 @@
 
 pub mod error;
 pub mod extract;
+pub mod image_input;
 pub mod metrics;
 pub mod middleware;
 pub mod openapi;

@@ -3,11 +3,26 @@
 //!
 //! `openapi/openapi.json` in the repository is [`openapi_json`]'s output, written only by
 //! `cargo run -- openapi > openapi/openapi.json`; a test fails when the two drift.
+//!
+//! `GET /openapi.json` is served from here, from a static rendered once: the document is
+//! made from the routes, so the route that serves it lives with it rather than among them.
 
-use super::routes::{corners, docs, health, image, metrics};
+use super::error::ApiError;
+use super::routes::{corners, health, image, metrics};
 use super::state::AppState;
+use axum::body::Bytes;
+use axum::http::header;
+use axum::response::IntoResponse;
+use std::sync::LazyLock;
 use utoipa::OpenApi;
 use utoipa_axum::{router::OpenApiRouter, routes};
+
+/// Where the OpenAPI document is served.
+pub const OPENAPI_PATH: &str = "/openapi.json";
+
+/// The document as served, rendered on first use.
+static OPENAPI_JSON: LazyLock<Result<Bytes, String>> =
+    LazyLock::new(|| openapi_json().map(Bytes::from).map_err(|e| e.to_string()));
 
 /// The command that regenerates the committed document.
 pub const REGENERATE: &str = "cargo run -- openapi > openapi/openapi.json";
@@ -44,7 +59,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(health::healthz))
         .routes(routes!(health::readyz))
         .routes(routes!(metrics::metrics))
-        .routes(routes!(docs::openapi_json))
+        .routes(routes!(serve_openapi_json))
 }
 
 /// The OpenAPI document.
@@ -61,4 +76,30 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
 /// Only if the document cannot be serialised, which a derived document always can.
 pub fn openapi_json() -> Result<String, serde_json::Error> {
     openapi().to_pretty_json().map(|json| json + "\n")
+}
+
+/// The OpenAPI 3.1 document of this API (identical to `qrpose openapi`).
+#[utoipa::path(
+    get,
+    path = "/openapi.json",
+    tag = "operations",
+    operation_id = "openapi_json",
+    responses((status = 200, description = "The OpenAPI 3.1 document.", body = Object,
+        content_type = "application/json"))
+)]
+pub async fn serve_openapi_json() -> Result<impl IntoResponse, ApiError> {
+    let json = OPENAPI_JSON.as_ref().map_err(ApiError::internal)?;
+    Ok(([(header::CONTENT_TYPE, "application/json")], json.clone()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_served_document_is_the_rendered_one() {
+        let served = OPENAPI_JSON.as_ref().expect("renders");
+        let rendered = openapi_json().expect("renders");
+        assert_eq!(served.as_ref(), rendered.as_bytes());
+    }
 }

@@ -18,9 +18,8 @@
 
 use super::error::ApiError;
 use super::metrics::QueueMetrics;
+use crate::detect::contain::contain;
 use crossbeam_channel::{Receiver, Sender};
-use std::any::Any;
-use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore, oneshot};
@@ -90,15 +89,6 @@ fn work(jobs: &Receiver<Job>) {
     }
 }
 
-/// The message of a caught panic.
-fn panic_message(panic: &(dyn Any + Send)) -> &str {
-    panic
-        .downcast_ref::<&str>()
-        .copied()
-        .or_else(|| panic.downcast_ref::<String>().map(String::as_str))
-        .unwrap_or("a panic without a message")
-}
-
 impl EstimationQueue {
     /// A queue with `workers` threads and at most `max_waiting` jobs waiting.
     ///
@@ -143,7 +133,7 @@ impl EstimationQueue {
                 return;
             }
             place.start();
-            let outcome = catch_unwind(AssertUnwindSafe(|| span.in_scope(job)));
+            let outcome = contain(|| span.in_scope(job));
             // Free the place before answering, so that the next request finds it free.
             drop(place);
             // The receiver may be gone (timed out meanwhile); the result is then unused.
@@ -156,8 +146,7 @@ impl EstimationQueue {
         match result.await {
             Ok(Ok(value)) => Ok(value),
             Ok(Err(panic)) => Err(ApiError::internal(format!(
-                "estimation job panicked: {}",
-                panic_message(panic.as_ref())
+                "estimation job panicked: {panic}"
             ))),
             Err(_) => Err(ApiError::internal("the estimation job was dropped")),
         }

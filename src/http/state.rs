@@ -1,10 +1,8 @@
 //! [`AppState`]: what every handler shares, passed with axum's `State`.
 
 use super::metrics::Metrics;
-use super::openapi;
 use super::queue::EstimationQueue;
 use crate::config::Settings;
-use axum::body::Bytes;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -29,9 +27,6 @@ impl Lifecycle {
 /// Why the state could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum StateError {
-    /// The OpenAPI document could not be serialised (a derived document always can).
-    #[error("cannot render the OpenAPI document: {0}")]
-    OpenApi(#[from] serde_json::Error),
     /// An estimation worker thread could not be spawned.
     #[error("cannot start the estimation workers: {0}")]
     Workers(#[from] std::io::Error),
@@ -48,8 +43,6 @@ pub struct AppState {
     pub metrics: Arc<Metrics>,
     /// Ready or draining.
     pub lifecycle: Lifecycle,
-    /// `GET /openapi.json`, rendered once.
-    pub openapi_json: Bytes,
 }
 
 impl AppState {
@@ -69,7 +62,6 @@ impl AppState {
             queue,
             metrics,
             lifecycle: Lifecycle::default(),
-            openapi_json: Bytes::from(openapi::openapi_json()?),
         })
     }
 }

@@ -4,6 +4,7 @@ use crate::helpers::{spawn_app, valid_request};
 use qrpose::api::{
     estimate_corners, problem::parse_json, request::CornersRequest, response::PoseResponse,
 };
+use qrpose::estimate::Method;
 use reqwest::{StatusCode, header};
 use serde_json::{Value, json};
 
@@ -19,7 +20,10 @@ async fn returns_the_pose_of_a_valid_request() {
     assert_eq!(response.status(), StatusCode::OK);
     assert_eq!(response.headers()[header::CONTENT_TYPE], "application/json");
     let pose: PoseResponse = response.json().await.expect("a pose");
-    assert_eq!(pose.diagnostics.method, "reprojection");
+    assert_eq!(
+        Method::from(pose.diagnostics.method).as_str(),
+        "reprojection"
+    );
     assert!(pose.diagnostics.converged);
     assert!(
         (pose.position_mm.z - 498.0).abs() < 5.0,

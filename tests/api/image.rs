@@ -11,6 +11,7 @@ use qrpose::api::image::{ImageResponse, MarkerResultDto, PointsDto};
 use qrpose::api::problem::ErrorCode;
 use qrpose::config::Settings;
 use qrpose::detect::Backend;
+use qrpose::estimate::Method;
 use qrpose::render::{Encoding, Rendered};
 use reqwest::{Response, StatusCode, header};
 use serde_json::json;
@@ -84,7 +85,7 @@ async fn a_raw_jpeg_body_gives_the_codes_corners_and_pose() {
     let marker = assert_matches_truth(&body, &PHOTO);
     assert_eq!(marker.points_used, PointsDto::Corners);
     let diagnostics = &marker.pose.as_ref().expect("a pose").diagnostics;
-    assert_eq!(diagnostics.method, "reprojection");
+    assert_eq!(Method::from(diagnostics.method).as_str(), "reprojection");
     assert!(diagnostics.converged);
     assert!(body.timing_ms.decode > 0.0 && body.timing_ms.detect > 0.0);
 }
@@ -205,7 +206,7 @@ async fn query_parameters_choose_the_solver_and_the_points() {
         let marker = &body.markers[0];
         assert_eq!(marker.points_used, points, "{extra}");
         let diagnostics = &marker.pose.as_ref().expect("a pose").diagnostics;
-        assert_eq!(diagnostics.method, method, "{extra}");
+        assert_eq!(Method::from(diagnostics.method).as_str(), method, "{extra}");
         assert_eq!(
             diagnostics.trace.is_some(),
             extra.contains("trace=true"),

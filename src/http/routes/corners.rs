@@ -9,6 +9,7 @@ use crate::api::{
 use crate::http::{
     error::ApiError,
     extract::{JsonBody, JsonBytes},
+    metrics::PoseOutcome,
     state::AppState,
 };
 use axum::extract::State;
@@ -75,31 +76,14 @@ pub async fn pose_from_corners(
     JsonBody(body): JsonBody,
 ) -> Result<JsonBytes, ApiError> {
     let (json, outcome) = state.queue.run(move || estimate_to_json(&body)).await??;
-    state
-        .metrics
-        .observe_estimate(&outcome.method, outcome.iterations, outcome.converged);
+    state.metrics.observe_estimate(outcome);
     Ok(JsonBytes(json))
 }
 
-/// What the metrics need to know of an estimate.
-struct Outcome {
-    method: String,
-    iterations: u32,
-    converged: bool,
-}
-
 /// Parses, estimates and serialises, all on the estimation worker.
-fn estimate_to_json(body: &[u8]) -> Result<(Vec<u8>, Outcome), ApiError> {
+fn estimate_to_json(body: &[u8]) -> Result<(Vec<u8>, PoseOutcome), ApiError> {
     let request = parse_json::<CornersRequest>(body)?;
     let response = estimate_corners(&request)?;
     let json = serde_json::to_vec(&response).map_err(ApiError::internal)?;
-    let d = response.diagnostics;
-    Ok((
-        json,
-        Outcome {
-            method: d.method,
-            iterations: d.iterations,
-            converged: d.converged,
-        },
-    ))
+    Ok((json, PoseOutcome::from(&response)))
 }

@@ -1,0 +1,442 @@
+//! Encoded image bytes to an 8-bit grayscale raster, with size limits checked first.
+//!
+//! Formats: JPEG (the fast path, module `jpeg`: zune-jpeg decodes luma directly, no RGB
+//! round trip), PNG and WebP (through the `image` crate, then converted to luma). The format
+//! is sniffed from the magic bytes, never taken from a file name or a content type.
+//!
+//! Order of checks, so that no request can make the service allocate what it was not
+//! allowed to: encoded length against [`DecodeLimits::max_encoded_bytes`]; then the
+//! dimensions *declared in the header* against [`DecodeLimits::max_pixels`]; only then the
+//! decode. Every decoder runs inside [`crate::contain::contain`], so a decoder bug on
+//! hostile input is a [`DecodeError::Corrupt`], not a crash.
+//!
+//! The raster type, [`GrayImage`], lives in [`crate::gray`] (re-exported here).
+
+// Pixel and module indices are floats floored or clamped into the image or the module grid
+// (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
+#![allow(clippy::cast_possible_truncation)]
+
+mod jpeg;
+
+pub use crate::gray::GrayImage;
+
+use crate::contain::contain;
+use image::ImageDecoder;
+use std::io::Cursor;
+use thiserror::Error;
+
+/// Default limit on the encoded size, bytes (20 MB).
+pub const DEFAULT_MAX_ENCODED_BYTES: usize = 20_000_000;
+/// Default limit on the declared pixel count (50 MP).
+pub const DEFAULT_MAX_PIXELS: u64 = 50_000_000;
+
+/// What an image may cost before it is decoded. The HTTP layer fills this from its config.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DecodeLimits {
+    /// Largest accepted encoded size, bytes.
+    pub max_encoded_bytes: usize,
+    /// Largest accepted width × height, as declared in the header, pixels.
+    pub max_pixels: u64,
+}
+
+impl Default for DecodeLimits {
+    fn default() -> Self {
+        Self {
+            max_encoded_bytes: DEFAULT_MAX_ENCODED_BYTES,
+            max_pixels: DEFAULT_MAX_PIXELS,
+        }
+    }
+}
+
+/// The encodings the service reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// JPEG (baseline or progressive).
+    Jpeg,
+    /// PNG.
+    Png,
+    /// WebP (lossy or lossless).
+    Webp,
+}
+
+impl ImageFormat {
+    /// The lower-case name: "jpeg", "png", "webp".
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ImageFormat::Jpeg => "jpeg",
+            ImageFormat::Png => "png",
+            ImageFormat::Webp => "webp",
+        }
+    }
+}
+
+/// Why bytes did not become an image.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum DecodeError {
+    /// No bytes at all.
+    #[error("the image is empty (0 bytes)")]
+    Empty,
+    /// More encoded bytes than [`DecodeLimits::max_encoded_bytes`]: refused unread.
+    #[error("the encoded image has {bytes} bytes, more than the limit of {max_bytes}")]
+    EncodedTooLarge {
+        /// Bytes received.
+        bytes: usize,
+        /// The limit, bytes.
+        max_bytes: usize,
+    },
+    /// The header declares more pixels than [`DecodeLimits::max_pixels`]: refused before
+    /// any pixel buffer is allocated.
+    #[error(
+        "the image declares {width_px} × {height_px} pixels, more than the limit of {max_pixels}"
+    )]
+    TooManyPixels {
+        /// Declared width, px.
+        width_px: u64,
+        /// Declared height, px.
+        height_px: u64,
+        /// The limit, px.
+        max_pixels: u64,
+    },
+    /// The header declares a zero width or height.
+    #[error("the image declares a zero size ({width_px} × {height_px})")]
+    ZeroSize {
+        /// Declared width, px.
+        width_px: u64,
+        /// Declared height, px.
+        height_px: u64,
+    },
+    /// The magic bytes are not JPEG, PNG or WebP.
+    #[error("unsupported image format: expected JPEG, PNG or WebP")]
+    UnsupportedFormat,
+    /// The data is truncated or corrupt.
+    #[error("corrupt or truncated {format} data: {reason}")]
+    Corrupt {
+        /// The sniffed format ("jpeg", "png", "webp").
+        format: &'static str,
+        /// What the decoder said.
+        reason: String,
+    },
+}
+
+/// The format from the magic bytes, if it is one this module reads.
+pub fn sniff_format(bytes: &[u8]) -> Option<ImageFormat> {
+    if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        Some(ImageFormat::Jpeg)
+    } else if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        Some(ImageFormat::Png)
+    } else if bytes.len() >= 12 && &bytes[0..4] == b"RIFF" && &bytes[8..12] == b"WEBP" {
+        Some(ImageFormat::Webp)
+    } else {
+        None
+    }
+}
+
+fn corrupt(format: ImageFormat, reason: impl ToString) -> DecodeError {
+    DecodeError::Corrupt {
+        format: format.as_str(),
+        reason: reason.to_string(),
+    }
+}
+
+/// Refuses declared sizes that are zero or over the pixel limit.
+fn check_dimensions(
+    width_px: u64,
+    height_px: u64,
+    limits: &DecodeLimits,
+) -> Result<(), DecodeError> {
+    if width_px == 0 || height_px == 0 {
+        return Err(DecodeError::ZeroSize {
+            width_px,
+            height_px,
+        });
+    }
+    if width_px.saturating_mul(height_px) > limits.max_pixels {
+        return Err(DecodeError::TooManyPixels {
+            width_px,
+            height_px,
+            max_pixels: limits.max_pixels,
+        });
+    }
+    Ok(())
+}
+
+/// Runs a decoder, turning a panic inside it into [`DecodeError::Corrupt`].
+fn contained<T>(
+    format: ImageFormat,
+    f: impl FnOnce() -> Result<T, DecodeError>,
+) -> Result<T, DecodeError> {
+    contain(f).unwrap_or_else(|_| Err(corrupt(format, "the decoder failed on this data")))
+}
+
+/// The dimensions the header declares, (width, height) px, without decoding pixels.
+///
+/// # Errors
+/// [`DecodeError::UnsupportedFormat`] or [`DecodeError::Corrupt`] when no header can be read.
+pub fn declared_dimensions(bytes: &[u8]) -> Result<(u64, u64), DecodeError> {
+    let format = sniff_format(bytes).ok_or(DecodeError::UnsupportedFormat)?;
+    contained(format, || match format {
+        ImageFormat::Jpeg => jpeg::declared_dimensions(bytes),
+        ImageFormat::Png => png_dimensions(bytes),
+        ImageFormat::Webp => {
+            let reader = image_reader(bytes, format);
+            let (w, h) = reader.into_dimensions().map_err(|e| corrupt(format, e))?;
+            Ok((u64::from(w), u64::from(h)))
+        }
+    })
+}
+
+/// Width and height from a PNG's IHDR chunk, which the format requires to come first.
+fn png_dimensions(bytes: &[u8]) -> Result<(u64, u64), DecodeError> {
+    let header = bytes
+        .get(8..24)
+        .ok_or_else(|| corrupt(ImageFormat::Png, "truncated before the IHDR chunk"))?;
+    if &header[4..8] != b"IHDR" {
+        return Err(corrupt(ImageFormat::Png, "the first chunk is not IHDR"));
+    }
+    let be = |b: &[u8]| u64::from(u32::from_be_bytes([b[0], b[1], b[2], b[3]]));
+    Ok((be(&header[8..12]), be(&header[12..16])))
+}
+
+fn image_reader(bytes: &[u8], format: ImageFormat) -> image::ImageReader<Cursor<&[u8]>> {
+    let image_format = match format {
+        ImageFormat::Png => image::ImageFormat::Png,
+        ImageFormat::Webp => image::ImageFormat::WebP,
+        ImageFormat::Jpeg => image::ImageFormat::Jpeg,
+    };
+    image::ImageReader::with_format(Cursor::new(bytes), image_format)
+}
+
+/// Decodes JPEG, PNG or WebP bytes to grayscale, checking `limits` first.
+///
+/// # Errors
+/// Every [`DecodeError`] variant, as its doc says; never panics.
+pub fn decode_gray(bytes: &[u8], limits: &DecodeLimits) -> Result<GrayImage, DecodeError> {
+    if bytes.is_empty() {
+        return Err(DecodeError::Empty);
+    }
+    if bytes.len() > limits.max_encoded_bytes {
+        return Err(DecodeError::EncodedTooLarge {
+            bytes: bytes.len(),
+            max_bytes: limits.max_encoded_bytes,
+        });
+    }
+    let format = sniff_format(bytes).ok_or(DecodeError::UnsupportedFormat)?;
+    let (width_px, height_px) = declared_dimensions(bytes)?;
+    check_dimensions(width_px, height_px, limits)?;
+    contained(format, || match format {
+        ImageFormat::Jpeg => jpeg::decode_luma(bytes),
+        ImageFormat::Png | ImageFormat::Webp => decode_with_image(bytes, format, limits),
+    })
+}
+
+fn decode_with_image(
+    bytes: &[u8],
+    format: ImageFormat,
+    limits: &DecodeLimits,
+) -> Result<GrayImage, DecodeError> {
+    let mut reader = image_reader(bytes, format);
+    let mut image_limits = image::Limits::default();
+    // RGBA8 at the pixel limit, plus the luma copy.
+    image_limits.max_alloc = Some(limits.max_pixels.saturating_mul(5));
+    reader.limits(image_limits);
+    let decoder = reader.into_decoder().map_err(|e| corrupt(format, e))?;
+    let (w, h) = decoder.dimensions();
+    let image = image::DynamicImage::from_decoder(decoder).map_err(|e| corrupt(format, e))?;
+    let luma = image.into_luma8();
+    GrayImage::new(w as usize, h as usize, luma.into_raw())
+        .ok_or_else(|| corrupt(format, "decoded size mismatch"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn encode_png(width: u32, height: u32) -> Vec<u8> {
+        let img = image::GrayImage::from_fn(width, height, |x, y| image::Luma([(x * 7 + y) as u8]));
+        let mut out = Vec::new();
+        img.write_to(&mut Cursor::new(&mut out), image::ImageFormat::Png)
+            .expect("png encodes");
+        out
+    }
+
+    fn encode_jpeg(width: u32, height: u32) -> Vec<u8> {
+        let img = image::GrayImage::from_fn(width, height, |x, _| {
+            image::Luma([if x < width / 2 { 20 } else { 230 }])
+        });
+        let mut out = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 90)
+            .encode_image(&img)
+            .expect("jpeg encodes");
+        out
+    }
+
+    /// A PNG whose IHDR declares `width` × `height` with no pixel data behind it (the CRC is
+    /// computed so that only the size is wrong).
+    fn png_header_declaring(width: u32, height: u32) -> Vec<u8> {
+        let mut ihdr = b"IHDR".to_vec();
+        ihdr.extend_from_slice(&width.to_be_bytes());
+        ihdr.extend_from_slice(&height.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 0, 0, 0, 0]);
+        let crc = crc32(&ihdr);
+        let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+        out.extend_from_slice(&13u32.to_be_bytes());
+        out.extend_from_slice(&ihdr);
+        out.extend_from_slice(&crc.to_be_bytes());
+        out
+    }
+
+    fn crc32(data: &[u8]) -> u32 {
+        let mut crc = 0xFFFF_FFFFu32;
+        for &b in data {
+            crc ^= u32::from(b);
+            for _ in 0..8 {
+                crc = if crc & 1 == 1 {
+                    (crc >> 1) ^ 0xEDB8_8320
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    }
+
+    #[test]
+    fn decodes_png_and_jpeg_to_the_right_size_and_values() {
+        let png = decode_gray(&encode_png(40, 30), &DecodeLimits::default()).expect("png");
+        assert_eq!((png.width(), png.height()), (40, 30));
+        assert_eq!(png.get(3, 2), 23);
+        let jpeg = decode_gray(&encode_jpeg(64, 48), &DecodeLimits::default()).expect("jpeg");
+        assert_eq!((jpeg.width(), jpeg.height()), (64, 48));
+        assert!(jpeg.get(5, 10) < 40 && jpeg.get(60, 10) > 210);
+    }
+
+    #[test]
+    fn refuses_a_huge_declared_size_before_allocating() {
+        let bytes = png_header_declaring(100_000, 100_000);
+        assert_eq!(
+            declared_dimensions(&bytes),
+            Ok((100_000, 100_000)),
+            "the header alone is read"
+        );
+        let err = decode_gray(&bytes, &DecodeLimits::default()).expect_err("too large");
+        assert_eq!(
+            err,
+            DecodeError::TooManyPixels {
+                width_px: 100_000,
+                height_px: 100_000,
+                max_pixels: DEFAULT_MAX_PIXELS
+            }
+        );
+    }
+
+    #[test]
+    fn applies_configured_limits() {
+        let png = encode_png(40, 30);
+        let small_bytes = DecodeLimits {
+            max_encoded_bytes: 10,
+            ..DecodeLimits::default()
+        };
+        assert!(matches!(
+            decode_gray(&png, &small_bytes),
+            Err(DecodeError::EncodedTooLarge { max_bytes: 10, .. })
+        ));
+        let few_pixels = DecodeLimits {
+            max_pixels: 1199,
+            ..DecodeLimits::default()
+        };
+        assert!(matches!(
+            decode_gray(&png, &few_pixels),
+            Err(DecodeError::TooManyPixels {
+                max_pixels: 1199,
+                ..
+            })
+        ));
+        let exact = DecodeLimits {
+            max_pixels: 1200,
+            ..DecodeLimits::default()
+        };
+        assert!(decode_gray(&png, &exact).is_ok(), "the limit is inclusive");
+    }
+
+    #[test]
+    fn every_bad_input_has_its_error() {
+        let limits = DecodeLimits::default();
+        assert_eq!(decode_gray(&[], &limits), Err(DecodeError::Empty));
+        assert_eq!(
+            decode_gray(b"GIF89a not supported", &limits),
+            Err(DecodeError::UnsupportedFormat)
+        );
+        assert_eq!(
+            decode_gray(&png_header_declaring(0, 10), &limits),
+            Err(DecodeError::ZeroSize {
+                width_px: 0,
+                height_px: 10
+            })
+        );
+        let jpeg = encode_jpeg(64, 48);
+        let png = encode_png(40, 30);
+        let cases: [(&str, Vec<u8>, &str); 5] = [
+            ("truncated jpeg", jpeg[..jpeg.len() / 3].to_vec(), "jpeg"),
+            ("jpeg magic only", vec![0xFF, 0xD8, 0xFF], "jpeg"),
+            ("truncated png", png[..png.len() - 30].to_vec(), "png"),
+            ("png header only", png_header_declaring(40, 30), "png"),
+            ("webp magic only", b"RIFF\0\0\0\0WEBPVP8 ".to_vec(), "webp"),
+        ];
+        for (name, bytes, format) in cases {
+            match decode_gray(&bytes, &limits) {
+                Err(DecodeError::Corrupt { format: f, .. }) => assert_eq!(f, format, "{name}"),
+                other => panic!("{name}: {other:?}"),
+            }
+        }
+    }
+
+    /// A textured JPEG (every 8 × 8 block differs, so every part of the scan carries data).
+    fn textured_jpeg(width: u32, height: u32) -> Vec<u8> {
+        let img = image::GrayImage::from_fn(width, height, |x, y| {
+            image::Luma([((x * 7 + y * 13 + (x / 8) * (y / 8) * 31) % 251) as u8])
+        });
+        let mut out = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 90)
+            .encode_image(&img)
+            .expect("jpeg encodes");
+        out
+    }
+
+    #[test]
+    fn a_jpeg_cut_anywhere_in_its_scan_is_corrupt_not_grey() {
+        let limits = DecodeLimits::default();
+        let jpeg = textured_jpeg(320, 240);
+        assert!(decode_gray(&jpeg, &limits).is_ok());
+        for share in [0.3, 0.5, 0.8, 0.95, 0.99] {
+            let cut = &jpeg[..(jpeg.len() as f64 * share) as usize];
+            match decode_gray(cut, &limits) {
+                Err(DecodeError::Corrupt { format, reason }) => {
+                    assert_eq!(format, "jpeg");
+                    assert!(reason.contains("ends before"), "{share}: {reason}");
+                }
+                other => panic!("cut at {share}: {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn a_jpeg_with_extra_bytes_between_headers_still_decodes() {
+        // Strict zune-jpeg rejects garbage between segments; cameras write such files and
+        // the lenient retry reads them.
+        let jpeg = textured_jpeg(64, 48);
+        // After the first segment (SOI, then a marker and its big-endian length).
+        let first_end = 4 + usize::from(u16::from_be_bytes([jpeg[4], jpeg[5]]));
+        let mut odd = jpeg[..first_end].to_vec();
+        odd.extend_from_slice(&[0x00, 0x11, 0x22]);
+        odd.extend_from_slice(&jpeg[first_end..]);
+        assert!(
+            jpeg::decode_with(&odd, true).is_err(),
+            "strict mode rejects it"
+        );
+        let clean = decode_gray(&jpeg, &DecodeLimits::default()).expect("clean decodes");
+        match decode_gray(&odd, &DecodeLimits::default()) {
+            Ok(decoded) => assert!(decoded.pixels() == clean.pixels(), "pixels differ"),
+            Err(e) => panic!("extra bytes: {e:?}"),
+        }
+    }
+}

@@ -1,0 +1,309 @@
+//! Image filters: every whole-image transform of the workspace in one place.
+//!
+//! - On [`GrayImage`], for the second passes of `auto` ([`crate::find_candidates`]):
+//!   [`stretch_contrast`], [`invert`], [`sharpen`] (an unsharp mask, or with amount −1 the
+//!   Gaussian blur itself), [`upscale_double`] and [`downscale_half`].
+//! - On a floating-point plane, for the renderer's lens blur (`qrpose_sim::render`):
+//!   [`gaussian_blur_plane`].
+//!
+//! Both Gaussian blurs are one separable convolution (`separable_gaussian`) with the same
+//! kernel ([`gaussian_kernel`]: radius ⌈3σ⌉, at least 1, normalised to sum 1) and borders
+//! clamped to the nearest pixel; they differ only in the number type: `f32` for
+//! [`sharpen`] (u8 in and out: speed), `f64` for the renderer's plane (before noise and
+//! quantisation).
+
+use super::decode::GrayImage;
+use std::iter::Sum;
+use std::ops::{AddAssign, Mul};
+
+/// Unsharp mask: `image + amount · (image − Gaussian(image, σ))`, clamped to 0-255
+/// (`amount` = −1 is the Gaussian blur itself).
+/// Blur of σ ≈ 0.5 module leaves a module-wide pattern a sixth of its contrast; this gives
+/// the binarisers of the backends some of it back (measured on the rendered set, see
+/// docs/detection.md).
+pub fn sharpen(image: &GrayImage, sigma_px: f64, amount: f64) -> Option<GrayImage> {
+    let (w, h) = (image.width(), image.height());
+    let src: Vec<f32> = image.pixels().iter().map(|&p| f32::from(p)).collect();
+    let amount = amount as f32;
+    let mut pixels = Vec::with_capacity(w * h);
+    separable_gaussian(&src, w, sigma_px, |y, blurred| {
+        let row = src.get(y * w..(y + 1) * w).unwrap_or_default();
+        pixels.extend(
+            row.iter()
+                .zip(blurred)
+                .map(|(&v, &b)| (v + amount * (v - b)).round().clamp(0.0, 255.0) as u8),
+        );
+    });
+    GrayImage::new(w, h, pixels)
+}
+
+/// Gaussian blur of σ `sigma_px` of a row-major `width` × `height` plane, borders clamped
+/// (the renderer's lens blur, in `f64`). `None` unless `plane.len() == width · height` and
+/// both are positive.
+pub fn gaussian_blur_plane(
+    plane: &[f64],
+    width: usize,
+    height: usize,
+    sigma_px: f64,
+) -> Option<Vec<f64>> {
+    if width == 0 || height == 0 || width.checked_mul(height) != Some(plane.len()) {
+        return None;
+    }
+    let mut out = Vec::with_capacity(plane.len());
+    separable_gaussian(plane, width, sigma_px, |_, blurred| {
+        out.extend_from_slice(blurred);
+    });
+    Some(out)
+}
+
+/// The normalised Gaussian kernel of σ `sigma_px`: 2r + 1 taps, r = ⌈3σ⌉ (at least 1).
+pub fn gaussian_kernel(sigma_px: f64) -> Vec<f64> {
+    let radius = (3.0 * sigma_px).ceil().max(1.0) as i64;
+    let raw: Vec<f64> = (-radius..=radius)
+        .map(|k| (-0.5 * (k as f64 / sigma_px).powi(2)).exp())
+        .collect();
+    let sum: f64 = raw.iter().sum();
+    raw.iter().map(|k| k / sum).collect()
+}
+
+/// The number types [`separable_gaussian`] works in.
+trait Sample: Copy + Default + Mul<Output = Self> + AddAssign + Sum {
+    /// A kernel tap (computed in `f64`) in this type.
+    fn from_f64(x: f64) -> Self;
+}
+
+impl Sample for f32 {
+    fn from_f64(x: f64) -> Self {
+        x as f32
+    }
+}
+
+impl Sample for f64 {
+    fn from_f64(x: f64) -> Self {
+        x
+    }
+}
+
+/// Separable Gaussian blur of a row-major plane `width` px wide, borders clamped to the
+/// nearest pixel: a horizontal pass on an edge-padded copy of each row, then the vertical
+/// pass a whole row at a time (both loops vectorise). Each blurred row is handed to
+/// `emit(y, row)` in order, so a caller can use it without a second full-size buffer.
+/// Taps are summed in kernel order, horizontal pass first. Nothing is emitted for a zero
+/// `width`.
+fn separable_gaussian<T: Sample>(
+    src: &[T],
+    width: usize,
+    sigma_px: f64,
+    mut emit: impl FnMut(usize, &[T]),
+) {
+    if width == 0 {
+        return;
+    }
+    let w = width;
+    let h = src.len() / w;
+    let kernel: Vec<T> = gaussian_kernel(sigma_px)
+        .into_iter()
+        .map(T::from_f64)
+        .collect();
+    let radius = kernel.len() / 2;
+    let mut tmp = vec![T::default(); w * h];
+    let mut padded = vec![T::default(); w + 2 * radius];
+    for (row, out) in src.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
+        let (first, last) = (row[0], row[w - 1]);
+        padded[..radius].fill(first);
+        padded[radius..radius + w].copy_from_slice(row);
+        padded[radius + w..].fill(last);
+        for (o, window) in out.iter_mut().zip(padded.windows(2 * radius + 1)) {
+            *o = kernel.iter().zip(window).map(|(&k, &p)| k * p).sum();
+        }
+    }
+    let mut blurred = vec![T::default(); w];
+    for y in 0..h {
+        blurred.fill(T::default());
+        for (k, &kv) in kernel.iter().enumerate() {
+            let yy = (y + k).saturating_sub(radius).min(h - 1);
+            for (b, &t) in blurred.iter_mut().zip(&tmp[yy * w..(yy + 1) * w]) {
+                *b += kv * t;
+            }
+        }
+        emit(y, &blurred);
+    }
+}
+
+/// The photographic negative, for light-on-dark codes.
+pub fn invert(image: &GrayImage) -> Option<GrayImage> {
+    let pixels = image.pixels().iter().map(|p| 255 - p).collect();
+    GrayImage::new(image.width(), image.height(), pixels)
+}
+
+/// Doubles the image by bilinear interpolation (pixel centres kept: copy pixel (x, y)
+/// samples the source at ((x + 0.5) / 2 − 0.5, (y + 0.5) / 2 − 0.5)).
+pub fn upscale_double(image: &GrayImage) -> Option<GrayImage> {
+    let (w, h) = (image.width() * 2, image.height() * 2);
+    let max_u = (image.width() - 1) as f64;
+    let max_v = (image.height() - 1) as f64;
+    let mut pixels = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let u = ((x as f64 + 0.5) / 2.0 - 0.5).clamp(0.0, max_u);
+            let v = ((y as f64 + 0.5) / 2.0 - 0.5).clamp(0.0, max_v);
+            pixels.push(image.sample(u, v).unwrap_or(0.0).round().clamp(0.0, 255.0) as u8);
+        }
+    }
+    GrayImage::new(w, h, pixels)
+}
+
+/// Stretches the 1st-99th percentile range to 0-255; `None` when it is already full.
+pub fn stretch_contrast(image: &GrayImage) -> Option<GrayImage> {
+    let mut hist = [0usize; 256];
+    for &p in image.pixels() {
+        hist[usize::from(p)] += 1;
+    }
+    let total = image.pixels().len();
+    let pct = |q: f64| {
+        let target = (q * total as f64) as usize;
+        let mut acc = 0;
+        for (value, count) in hist.iter().enumerate() {
+            acc += count;
+            if acc > target {
+                return value;
+            }
+        }
+        255
+    };
+    let (lo, hi) = (pct(0.01), pct(0.99));
+    if hi <= lo || (lo < 10 && hi > 245) {
+        return None;
+    }
+    let scale = 255.0 / (hi - lo) as f64;
+    let pixels = image
+        .pixels()
+        .iter()
+        .map(|&p| (((f64::from(p) - lo as f64) * scale).clamp(0.0, 255.0)).round() as u8)
+        .collect();
+    GrayImage::new(image.width(), image.height(), pixels)
+}
+
+/// Halves the image by 2 × 2 box averaging (rounded); an odd last row or column is dropped.
+pub fn downscale_half(image: &GrayImage) -> Option<GrayImage> {
+    let (w, h) = (image.width() / 2, image.height() / 2);
+    let stride = image.width();
+    // Row by row into a zeroed buffer, vertical sums first: both loops vectorise.
+    let mut pixels = vec![0u8; w * h];
+    let mut sums = vec![0u16; 2 * w];
+    for (out, pair) in pixels
+        .chunks_exact_mut(w.max(1))
+        .zip(image.pixels().chunks_exact(2 * stride))
+    {
+        let (top, bottom) = pair.split_at(stride);
+        for ((s, &t), &b) in sums.iter_mut().zip(top).zip(bottom) {
+            *s = u16::from(t) + u16::from(b);
+        }
+        for (o, s) in out.iter_mut().zip(sums.chunks_exact(2)) {
+            // At most (4 · 255 + 2) / 4 = 255.
+            *o = ((s[0] + s[1] + 2) >> 2) as u8;
+        }
+    }
+    GrayImage::new(w, h, pixels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The blur written out directly: every output pixel a sum over the kernel, borders
+    /// clamped (the renderer's blur before it moved here).
+    fn direct_blur(src: &[f64], w: usize, h: usize, sigma: f64) -> Vec<f64> {
+        let kernel = gaussian_kernel(sigma);
+        let r = (kernel.len() / 2) as i64;
+        let at = |i: i64, n: usize| i.clamp(0, n as i64 - 1) as usize;
+        let pass = |src: &[f64], horizontal: bool| -> Vec<f64> {
+            (0..w * h)
+                .map(|p| {
+                    let (x, y) = ((p % w) as i64, (p / w) as i64);
+                    kernel
+                        .iter()
+                        .enumerate()
+                        .map(|(k, kv)| {
+                            let d = k as i64 - r;
+                            let q = if horizontal {
+                                y as usize * w + at(x + d, w)
+                            } else {
+                                at(y + d, h) * w + x as usize
+                            };
+                            kv * src[q]
+                        })
+                        .sum()
+                })
+                .collect()
+        };
+        pass(&pass(src, true), false)
+    }
+
+    fn test_plane(w: usize, h: usize) -> Vec<f64> {
+        (0..w * h)
+            .map(|k| ((k * 37 + (k / w) * 101) % 251) as f64 * 0.93 + 3.0)
+            .collect()
+    }
+
+    #[test]
+    fn kernel_is_normalised_symmetric_and_three_sigma_wide() {
+        for (sigma, radius) in [(0.1, 1), (0.5, 2), (1.0, 3), (1.5, 5), (2.0, 6)] {
+            let k = gaussian_kernel(sigma);
+            assert_eq!(k.len(), 2 * radius + 1, "σ {sigma}");
+            assert!((k.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+            assert!(k.iter().zip(k.iter().rev()).all(|(a, b)| a == b));
+        }
+    }
+
+    #[test]
+    fn plane_blur_is_the_direct_convolution_exactly() {
+        for (w, h) in [(1, 1), (1, 7), (9, 1), (17, 13), (40, 30)] {
+            let plane = test_plane(w, h);
+            for sigma in [0.3, 0.8, 1.4, 2.5] {
+                let fast = gaussian_blur_plane(&plane, w, h, sigma).expect("a size");
+                assert_eq!(
+                    fast,
+                    direct_blur(&plane, w, h, sigma),
+                    "{w} × {h}, σ {sigma}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn plane_blur_refuses_a_wrong_size() {
+        assert_eq!(gaussian_blur_plane(&[1.0; 6], 4, 2, 1.0), None);
+        assert_eq!(gaussian_blur_plane(&[], 0, 0, 1.0), None);
+    }
+
+    #[test]
+    fn sharpen_of_minus_one_is_the_rounded_blur() {
+        let (w, h) = (23, 17);
+        let pixels: Vec<u8> = (0..w * h).map(|k| ((k * 53) % 256) as u8).collect();
+        let image = GrayImage::new(w, h, pixels).expect("a size");
+        let blurred = sharpen(&image, 1.2, -1.0).expect("a size");
+        let plane: Vec<f64> = image.pixels().iter().map(|&p| f64::from(p)).collect();
+        let reference = direct_blur(&plane, w, h, 1.2);
+        for (got, want) in blurred.pixels().iter().zip(&reference) {
+            // f32 against f64: at most one grey level apart where the value is near a half.
+            assert!(
+                (f64::from(*got) - want.round()).abs() <= 1.0,
+                "{got} vs {want}"
+            );
+        }
+        let flat = GrayImage::new(8, 8, vec![77; 64]).expect("a size");
+        assert_eq!(sharpen(&flat, 1.5, 2.0), Some(flat.clone()));
+    }
+
+    #[test]
+    fn invert_and_rescale_keep_sizes_and_values() {
+        let image = GrayImage::new(4, 2, vec![0, 10, 20, 30, 40, 50, 60, 255]).expect("a size");
+        assert_eq!(invert(&image).and_then(|i| invert(&i)), Some(image.clone()));
+        let half = downscale_half(&image).expect("a size");
+        assert_eq!(half.pixels(), &[25, 91]);
+        let double = upscale_double(&image).expect("a size");
+        assert_eq!((double.width(), double.height()), (8, 4));
+        assert_eq!(double.get(0, 0), 0);
+    }
+}

@@ -1,0 +1,162 @@
+//! Plane-to-image homographies between the symbol's module grid and the image.
+//!
+//! Module coordinates (u, v) run right and down from the symbol's top-left corner, in
+//! modules: the symbol of N modules covers [0, N]²; module (i, j) (column i, row j) covers
+//! [i, i + 1] × [j, j + 1]. Image coordinates are pixels with integer pixel centres
+//! (docs/conventions.md).
+
+use nalgebra::{DMatrix, Matrix3, Vector3};
+use qrpose_core::geometry::frames::PixelPoint;
+
+/// A point in module coordinates (modules, right and down from the top-left corner).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModulePoint {
+    /// Column direction, modules.
+    pub u: f64,
+    /// Row direction, modules.
+    pub v: f64,
+}
+
+impl ModulePoint {
+    /// A point from its coordinates.
+    pub fn new(u: f64, v: f64) -> Self {
+        Self { u, v }
+    }
+}
+
+/// x_image ~ H · (u, v, 1)ᵀ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Homography {
+    h: Matrix3<f64>,
+    inv: Matrix3<f64>,
+}
+
+impl Homography {
+    /// From a matrix; `None` when it is singular or not finite.
+    pub fn from_matrix(h: Matrix3<f64>) -> Option<Self> {
+        let inv = h.try_inverse()?;
+        (h.iter().all(|x| x.is_finite()) && inv.iter().all(|x| x.is_finite()))
+            .then_some(Self { h, inv })
+    }
+
+    /// The matrix.
+    pub fn matrix(&self) -> &Matrix3<f64> {
+        &self.h
+    }
+
+    /// Fits the homography mapping `model` onto `image` (≥ 4 pairs) by the normalised DLT;
+    /// `None` when the points are degenerate.
+    pub fn fit(model: &[ModulePoint], image: &[PixelPoint]) -> Option<Self> {
+        if model.len() < 4 || model.len() != image.len() {
+            return None;
+        }
+        let (tm, model_n) = normalise(model.iter().map(|p| (p.u, p.v)));
+        let (ti, image_n) = normalise(image.iter().map(|p| (p.u(), p.v())));
+        let mut a = DMatrix::<f64>::zeros(2 * model.len(), 9);
+        for (k, ((x, y), (u, v))) in model_n.iter().zip(&image_n).enumerate() {
+            let r = 2 * k;
+            let row0 = [-x, -y, -1.0, 0.0, 0.0, 0.0, u * x, u * y, *u];
+            let row1 = [0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, *v];
+            for c in 0..9 {
+                a[(r, c)] = row0[c];
+                a[(r + 1, c)] = row1[c];
+            }
+        }
+        let ata = a.transpose() * &a;
+        let eig = ata.symmetric_eigen();
+        let (imin, _) = eig
+            .eigenvalues
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))?;
+        let h = eig.eigenvectors.column(imin);
+        let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
+        let full = ti.try_inverse()? * hn * tm;
+        Self::from_matrix(full / full[(2, 2)])
+    }
+
+    /// The homography taking the symbol's corners (0, 0), (n, 0), (n, n), (0, n) onto four
+    /// image corners in qr order (TL, TR, BR, BL).
+    pub fn from_corners(corners_qr: &[PixelPoint; 4], n_modules: f64) -> Option<Self> {
+        Self::fit(&symbol_corners(n_modules), corners_qr)
+    }
+
+    /// The image of the symbol's corners (0, 0), (n, 0), (n, n), (0, n), qr order: the
+    /// inverse of [`Homography::from_corners`].
+    pub fn corners(&self, n_modules: f64) -> [PixelPoint; 4] {
+        symbol_corners(n_modules).map(|m| self.map(m))
+    }
+
+    /// Maps a module point into the image.
+    pub fn map(&self, p: ModulePoint) -> PixelPoint {
+        let x = self.h * Vector3::new(p.u, p.v, 1.0);
+        PixelPoint::new(x.x / x.z, x.y / x.z)
+    }
+
+    /// Maps an image point back to module coordinates.
+    pub fn unmap(&self, p: PixelPoint) -> ModulePoint {
+        let x = self.inv * Vector3::new(p.u(), p.v(), 1.0);
+        ModulePoint::new(x.x / x.z, x.y / x.z)
+    }
+
+    /// Local scale at a module point: image pixels per module along u and along v.
+    pub fn px_per_module(&self, p: ModulePoint) -> (f64, f64) {
+        let a = self.map(p);
+        let du = self.map(ModulePoint::new(p.u + 1e-3, p.v));
+        let dv = self.map(ModulePoint::new(p.u, p.v + 1e-3));
+        ((du.0 - a.0).norm() / 1e-3, (dv.0 - a.0).norm() / 1e-3)
+    }
+}
+
+/// Hartley normalisation: centroid to the origin, mean distance √2.
+fn normalise(points: impl Iterator<Item = (f64, f64)>) -> (Matrix3<f64>, Vec<(f64, f64)>) {
+    let pts: Vec<(f64, f64)> = points.collect();
+    let n = pts.len().max(1) as f64;
+    let (cx, cy) = pts
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
+    let mean = pts.iter().map(|(x, y)| (x - cx).hypot(y - cy)).sum::<f64>() / n;
+    let s = if mean > 0.0 {
+        std::f64::consts::SQRT_2 / mean
+    } else {
+        1.0
+    };
+    let t = Matrix3::new(s, 0.0, -s * cx, 0.0, s, -s * cy, 0.0, 0.0, 1.0);
+    let out = pts
+        .iter()
+        .map(|(x, y)| (s * (x - cx), s * (y - cy)))
+        .collect();
+    (t, out)
+}
+
+/// The corners of an n-module symbol in module coordinates, qr order (TL, TR, BR, BL).
+fn symbol_corners(n_modules: f64) -> [ModulePoint; 4] {
+    [
+        ModulePoint::new(0.0, 0.0),
+        ModulePoint::new(n_modules, 0.0),
+        ModulePoint::new(n_modules, n_modules),
+        ModulePoint::new(0.0, n_modules),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fits_and_inverts_a_perspective_quad() {
+        let corners = [
+            PixelPoint::new(100.3, 120.1),
+            PixelPoint::new(230.8, 110.4),
+            PixelPoint::new(250.2, 260.9),
+            PixelPoint::new(90.5, 240.0),
+        ];
+        let h = Homography::from_corners(&corners, 21.0).expect("a quad");
+        for (mapped, given) in h.corners(21.0).iter().zip(&corners) {
+            assert!((mapped.0 - given.0).norm() < 1e-9);
+        }
+        let back = h.unmap(PixelPoint::new(170.0, 180.0));
+        let again = h.map(back);
+        assert!((again.0 - PixelPoint::new(170.0, 180.0).0).norm() < 1e-9);
+    }
+}

@@ -1,0 +1,162 @@
+//! From a photo to poses, as one library call: [`locate_markers`] finds and reads every QR
+//! code in a decoded image, refines its corners, and solves each code's pose. This is what
+//! `POST /v1/pose/image` and `qrpose estimate --image` run; the wire layer only turns its
+//! result into JSON.
+//!
+//! A code whose pose cannot be solved is still returned, with a typed [`MarkerError`] in
+//! place of the pose; it does not fail the other codes.
+
+use crate::finders::finder_marker_points;
+use crate::{DetectError, DetectedCode, DetectorChoice, decode::GrayImage, detect_codes};
+use qrpose_core::estimate::{
+    EstimateError, PoseEstimate, ValidSolver, estimate_planar_points, estimate_pose,
+};
+use qrpose_core::geometry::{
+    camera::Camera,
+    marker::{CornerOrder, Marker},
+    quad::{ImageQuad, QuadError},
+};
+use std::time::Instant;
+use thiserror::Error;
+
+/// What every code's pose is solved with: the camera of the photo, the printed code's size
+/// and the solver.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Setup {
+    /// The camera that took the photo (pixel units).
+    pub camera: Camera,
+    /// The printed code; every code in the photo is taken to have this size.
+    pub marker: Marker,
+    /// The solver, validated.
+    pub solver: ValidSolver,
+}
+
+/// Which image points a pose is solved from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Points {
+    /// The symbol's four corners.
+    #[default]
+    Corners,
+    /// The twelve outer corners of the three finder patterns, by the `reprojection` method
+    /// with the solver's iteration limit, trace and corner noise; a code whose finder
+    /// corners were not all measured falls back to its four corners.
+    Finders,
+}
+
+/// How to look.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Options {
+    /// Which detector backend(s).
+    pub detector: DetectorChoice,
+    /// Which points to solve from.
+    pub points: Points,
+}
+
+/// Why one code has no pose.
+#[derive(Debug, Clone, Copy, PartialEq, Error)]
+pub enum MarkerError {
+    /// The code's four corners do not form a usable quadrilateral.
+    #[error(transparent)]
+    Corners(QuadError),
+    /// The solver refused the points.
+    #[error("{source}")]
+    Estimate {
+        /// The points it was given.
+        points: Points,
+        /// Why it refused.
+        source: EstimateError,
+    },
+}
+
+/// One code found in the photo.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocatedMarker {
+    /// The code as detected: payload, corners, refinement.
+    pub code: DetectedCode,
+    /// The points the pose was solved from.
+    pub points_used: Points,
+    /// The pose, or why there is none.
+    pub pose: Result<PoseEstimate, MarkerError>,
+    /// Time spent solving this code's pose, µs.
+    pub estimate_us: f64,
+}
+
+/// Every code in the photo and the time each stage took.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Located {
+    /// The codes, in the detector's order.
+    pub markers: Vec<LocatedMarker>,
+    /// Detection, reading and corner refinement, ms.
+    pub detect_ms: f64,
+    /// Pose estimation of every code, ms.
+    pub estimate_ms: f64,
+}
+
+/// Finds, reads and refines every QR code in `image` and solves each one's pose.
+///
+/// # Errors
+/// [`DetectError`] when the chosen detector is not in this build. Finding no code is not
+/// an error (no markers), and neither is a code without a pose (its own [`MarkerError`]).
+pub fn locate_markers(
+    image: &GrayImage,
+    setup: &Setup,
+    options: &Options,
+) -> Result<Located, DetectError> {
+    let started = Instant::now();
+    let codes = detect_codes(image, options.detector)?;
+    let detect_ms = ms_since(started);
+    let started = Instant::now();
+    let markers = codes
+        .into_iter()
+        .map(|code| {
+            let solving = Instant::now();
+            let (points_used, pose) = solve(&code, setup, options.points);
+            LocatedMarker {
+                code,
+                points_used,
+                pose,
+                estimate_us: solving.elapsed().as_secs_f64() * 1e6,
+            }
+        })
+        .collect();
+    Ok(Located {
+        markers,
+        detect_ms,
+        estimate_ms: ms_since(started),
+    })
+}
+
+/// The pose of one code from the requested points (falling back to the corners when the
+/// finder corners are incomplete), and the points used.
+fn solve(
+    code: &DetectedCode,
+    setup: &Setup,
+    points: Points,
+) -> (Points, Result<PoseEstimate, MarkerError>) {
+    let r = &code.refinement;
+    if let (Points::Finders, Some(image), Some(n)) = (points, r.finder_corners_px, r.module_count) {
+        let model = finder_marker_points(&setup.marker, n);
+        let pose =
+            estimate_planar_points(&model, &image, &setup.camera, &setup.marker, &setup.solver)
+                .map_err(|source| MarkerError::Estimate {
+                    points: Points::Finders,
+                    source,
+                });
+        return (Points::Finders, pose);
+    }
+    let pose = ImageQuad::try_new(*code.corners_px(), CornerOrder::Qr)
+        .map_err(MarkerError::Corners)
+        .and_then(|quad| {
+            estimate_pose(&quad, &setup.camera, &setup.marker, &setup.solver).map_err(|source| {
+                MarkerError::Estimate {
+                    points: Points::Corners,
+                    source,
+                }
+            })
+        });
+    (Points::Corners, pose)
+}
+
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}

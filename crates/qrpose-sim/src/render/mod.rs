@@ -1,0 +1,188 @@
+//! Synthetic photos of a QR code at a known pose, with their ground truth: the test and
+//! benchmark source of every image-path number in this repository.
+//!
+//! Geometry (docs/conventions.md): pixel (u, v) covers [u − 0.5, u + 0.5] × [v − 0.5, v + 0.5];
+//! each pixel is the mean of `supersample`² rays through sub-pixel points
+//! u + (a + 0.5)/s − 0.5. A ray is undistorted (the camera's Brown-Conrady model, so the
+//! image is what a lens with that distortion would see), intersected with the marker plane
+//! and looked up in the symbol: marker frame origin P2 (top-right), x from P3 towards P2,
+//! y down the symbol, side l = the symbol without its quiet zone; module (i, j) of an
+//! N-module symbol covers x ∈ −l + l/N·[i, i + 1], y ∈ l/N·[j, j + 1]. The quiet zone
+//! (4 modules by default) is white; beyond it lies the background.
+//!
+//! Photometry, in order: reflectance (symbol dark/light levels, background clutter) ×
+//! uneven lighting (a linear gradient and vignetting), then the lens blur (Gaussian,
+//! σ px), sensor noise (Gaussian, grey levels), 8-bit quantisation, then JPEG at the given
+//! quality (or PNG). Everything random comes from one seed.
+//!
+//! Layout: the scene, effect and result types here; the symbol's modules and the ground
+//! truth in module `symbol`; the rasteriser (background, lighting, supersampled symbol,
+//! lens blur by [`qrpose_detect::filters::gaussian_blur_plane`], noise, quantisation) in
+//! module `raster`; the file encoding in module `encoding`. Every public item is
+//! re-exported here.
+
+// Pixel and module indices are floats floored or clamped into the image or the module grid
+// (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
+#![allow(clippy::cast_possible_truncation)]
+
+mod encoding;
+mod raster;
+mod symbol;
+#[cfg(test)]
+mod tests;
+
+pub use encoding::{Encoding, encode};
+pub use raster::render;
+pub use symbol::{ground_truth, marker_point, symbol_modules};
+
+use qrpose_core::geometry::{camera::Camera, frames::MarkerToCamera, marker::Marker};
+use qrpose_detect::decode::GrayImage;
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// Default quiet zone, modules (ISO/IEC 18004 asks for 4).
+pub const DEFAULT_QUIET_ZONE_MODULES: f64 = 4.0;
+/// Default supersampling per axis.
+pub const DEFAULT_SUPERSAMPLE: u32 = 4;
+/// Largest rendered image side, px.
+pub const MAX_SIDE_PX: u32 = 8192;
+
+/// Error correction level of the rendered symbol.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum EcLevel {
+    /// 7 %.
+    L,
+    /// 15 % (default).
+    #[default]
+    M,
+    /// 25 %.
+    Q,
+    /// 30 %.
+    H,
+}
+
+/// Everything a render needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// The symbol's content.
+    pub payload: Vec<u8>,
+    /// Error correction level.
+    pub ec_level: EcLevel,
+    /// The printed code.
+    pub marker: Marker,
+    /// The camera (intrinsics and distortion, px).
+    pub camera: Camera,
+    /// Image width, px.
+    pub width_px: u32,
+    /// Image height, px.
+    pub height_px: u32,
+    /// The marker's pose.
+    pub pose: MarkerToCamera,
+}
+
+/// Image quality effects. `Default` is a clean, sharp, noiseless PNG.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Effects {
+    /// Sub-samples per pixel and axis (anti-aliasing), 1-16.
+    pub supersample: u32,
+    /// Gaussian lens blur σ, px (0 = none).
+    pub blur_px: f64,
+    /// Gaussian sensor noise σ, grey levels (0 = none).
+    pub noise: f64,
+    /// Uneven lighting: relative illumination drop across the image, 0-0.9.
+    pub lighting: f64,
+    /// Number of random background shapes.
+    pub clutter: u32,
+    /// Grey level of the dark modules.
+    pub dark_level: f64,
+    /// Grey level of the light modules and the quiet zone.
+    pub light_level: f64,
+    /// Quiet zone, modules.
+    pub quiet_zone_modules: f64,
+    /// Output encoding.
+    pub encoding: Encoding,
+    /// Seed of every random choice.
+    pub seed: u64,
+}
+
+impl Default for Effects {
+    fn default() -> Self {
+        Self {
+            supersample: DEFAULT_SUPERSAMPLE,
+            blur_px: 0.0,
+            noise: 0.0,
+            lighting: 0.0,
+            clutter: 0,
+            dark_level: 25.0,
+            light_level: 225.0,
+            quiet_zone_modules: DEFAULT_QUIET_ZONE_MODULES,
+            encoding: Encoding::Png,
+            seed: 0,
+        }
+    }
+}
+
+/// Why a scene cannot be rendered.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RenderError {
+    /// The payload does not fit a QR symbol at this error correction level.
+    #[error("cannot encode the payload as a QR symbol: {reason}")]
+    Encode {
+        /// What the encoder said.
+        reason: String,
+    },
+    /// The image size is zero or above [`MAX_SIDE_PX`].
+    #[error("image size {width_px} × {height_px} is outside 1..={MAX_SIDE_PX}")]
+    ImageSize {
+        /// Requested width, px.
+        width_px: u32,
+        /// Requested height, px.
+        height_px: u32,
+    },
+    /// A corner of the symbol is behind the camera or outside the image.
+    #[error("the symbol is not entirely in front of the camera and inside the image")]
+    OutOfView,
+    /// An effect parameter is out of range.
+    #[error("effect {name} = {value} is out of range")]
+    Effect {
+        /// The effect.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// The image encoder failed.
+    #[error("cannot encode the image: {reason}")]
+    Image {
+        /// What the encoder said.
+        reason: String,
+    },
+}
+
+/// The ground truth of a render. Corners in qr order (TL, TR, BR, BL), px.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GroundTruth {
+    /// Modules per side.
+    pub module_count: usize,
+    /// The symbol's corners, px, qr order.
+    pub corners_px: [[f64; 2]; 4],
+    /// The three finder patterns' outer corners, px: top-left finder (TL, TR, BR, BL), then
+    /// top-right finder, then bottom-left finder.
+    pub finder_corners_px: [[f64; 2]; 12],
+    /// R of p_cam = R · p_marker + t, row-major.
+    pub rotation_matrix: [[f64; 3]; 3],
+    /// t: corner P2 (top-right) in the camera frame, mm.
+    pub reference_point_mm: [f64; 3],
+    /// The marker centre in the camera frame, mm.
+    pub position_mm: [f64; 3],
+}
+
+/// A rendered photo.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rendered {
+    /// The pixels before encoding.
+    pub image: GrayImage,
+    /// The encoded file (JPEG or PNG).
+    pub encoded: Vec<u8>,
+    /// Where everything is.
+    pub truth: GroundTruth,
+}

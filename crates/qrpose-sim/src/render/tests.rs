@@ -1,0 +1,105 @@
+//! Tests of the renderer through its public functions: ground truth against the pose,
+//! one edge's coverage against the geometry, and a symbol out of view.
+
+use super::*;
+use nalgebra::Vector3;
+use qrpose_core::geometry::euler::EulerXyz;
+
+fn scene(alpha_deg: f64, gamma_deg: f64) -> Scene {
+    Scene {
+        payload: b"qrpose render test".to_vec(),
+        ec_level: EcLevel::M,
+        marker: Marker::try_new(40.0).expect("valid size"),
+        camera: Camera::from_pixels(800.0, 800.0, 319.5, 239.5).expect("valid camera"),
+        width_px: 640,
+        height_px: 480,
+        pose: MarkerToCamera::new(
+            EulerXyz::from_degrees(alpha_deg, 0.0, gamma_deg).to_rotation(),
+            Vector3::new(20.0, -20.0, 300.0),
+        ),
+    }
+}
+
+#[test]
+fn ground_truth_corners_reproject_the_pose_exactly() {
+    let s = scene(20.0, 35.0);
+    let truth = ground_truth(&s).expect("in view");
+    let corners = s.marker.object_points(); // P1..P4
+    let qr_of_paper = [2, 1, 0, 3];
+    for (paper, corner) in corners.iter().enumerate() {
+        let p = s
+            .camera
+            .project(&s.pose.transform(corner))
+            .expect("in front");
+        let q = truth.corners_px[qr_of_paper[paper]];
+        assert!(
+            (p.u() - q[0]).abs() < 1e-9 && (p.v() - q[1]).abs() < 1e-9,
+            "P{}",
+            paper + 1
+        );
+    }
+    let finder = truth.finder_corners_px;
+    assert_eq!(
+        finder[0], truth.corners_px[0],
+        "TL finder TL is the symbol TL"
+    );
+    assert_eq!(
+        finder[5], truth.corners_px[1],
+        "TR finder TR is the symbol TR"
+    );
+    assert_eq!(
+        finder[11], truth.corners_px[3],
+        "BL finder BL is the symbol BL"
+    );
+}
+
+#[test]
+fn a_noiseless_fronto_parallel_edge_sits_where_the_geometry_says() {
+    // Identity rotation, P2 placed so that the symbol's left edge falls at u = 100.25, where
+    // 16 × 16 supersampling measures the 25 % coverage of pixel 100 exactly.
+    let camera = Camera::from_pixels(1000.0, 1000.0, 0.0, 0.0).expect("valid camera");
+    let marker = Marker::try_new(50.0).expect("valid size");
+    let z = 500.0;
+    let left_u = 100.25;
+    let s = Scene {
+        payload: b"edge".to_vec(),
+        ec_level: EcLevel::M,
+        marker,
+        camera,
+        width_px: 240,
+        height_px: 200,
+        pose: MarkerToCamera::new(
+            nalgebra::Rotation3::identity(),
+            Vector3::new(left_u * z / 1000.0 + 50.0, 40.0 * z / 1000.0, z),
+        ),
+    };
+    let effects = Effects {
+        supersample: 16,
+        ..Effects::default()
+    };
+    let r = render(&s, &effects).expect("renders");
+    assert!((r.truth.corners_px[0][0] - left_u).abs() < 1e-9);
+    // Row through the middle of the top-left finder's ring (dark from u = 100.25 on):
+    // pixel 100 covers [99.5, 100.5], 25 % dark; pixel 101 is fully dark.
+    let v = (r.truth.corners_px[0][1]
+        + 0.5 * (r.truth.corners_px[3][1] - r.truth.corners_px[0][1]) / 21.0)
+        .round() as usize;
+    let expected_100 = 0.75 * effects.light_level + 0.25 * effects.dark_level;
+    let got_100 = f64::from(r.image.get(100, v));
+    assert!(
+        (got_100 - expected_100).abs() <= 0.5,
+        "pixel 100: {got_100} vs {expected_100}"
+    );
+    assert!((f64::from(r.image.get(101, v)) - effects.dark_level).abs() <= 0.5);
+    assert!((f64::from(r.image.get(99, v)) - effects.light_level).abs() <= 0.5);
+}
+
+#[test]
+fn refuses_a_symbol_outside_the_image() {
+    let mut s = scene(0.0, 0.0);
+    s.pose = MarkerToCamera::new(
+        nalgebra::Rotation3::identity(),
+        Vector3::new(400.0, 0.0, 300.0),
+    );
+    assert_eq!(render(&s, &Effects::default()), Err(RenderError::OutOfView));
+}

@@ -1,0 +1,220 @@
+#!/usr/bin/env python3
+"""Real camera frames (issue 12): qrpose's detector against zxing-cpp (PyPI) on the same photo
+bytes, read rate and time per category.
+
+    cargo build --release
+    python3 scripts/photo_bench.py ../shared/data/qr-photos/boofcv-dev
+    python3 scripts/photo_bench.py ../shared/data/qr-photos/boofcv-dev --only lots nominal --limit 5
+    python3 scripts/photo_bench.py ../shared/data/qr-photos/boofcv-dev --qrpose-flag=--detector=rxing
+    python3 scripts/photo_bench.py ../shared/data/qr-photos/boofcv-dev --qrpose-flag='--effort fast' \\
+        --qrpose-flag=--max-detect-ms=500 --json target/photo-bench.json
+    python3 scripts/photo_bench.py ../shared/data/qr-photos/boofcv-dev \\
+        --qrpose-bin target-zxing/release/qrpose          # a `--features zxing-cpp` build
+
+MANIFEST_DIR/manifest.json: `images[]` with `path` (relative to MANIFEST_DIR), `group`
+(category) and `corners` (hand-labelled quadrilaterals, 4 [x, y] each). A code is READ when a
+returned quadrilateral with a decoded payload overlaps its label with IoU >= 0.5 (IoU of the
+convex hulls, so corner order does not matter); matching is one-to-one, greedy by IoU. For a
+manifest whose `corners` are null but which has `expected_texts` (the zxing-cpp sample set),
+codes are matched by payload instead, and the output says so.
+
+Per photo: `qrpose estimate --image PHOTO --fx-px F --fy-px F --cx-px (w-1)/2 --cy-px (h-1)/2
+--marker-size-mm 50 [--qrpose-flag ...]` with F = max(w, h) (intrinsics only matter for the
+pose); time = its `timing_ms.decode + timing_ms.detect`. A non-zero exit, a timeout
+(--timeout, 60 s) or unreadable output counts as nothing read and is listed. zxing-cpp:
+Pillow decode to 8-bit grey + `read_barcodes(formats=QRCode)`, timed together (median of
+--repeat runs). EXIF orientation is applied on neither side (qrpose ignores it; the labels are
+in the stored pixel grid). See scripts/photo_common.py for the shared conventions.
+
+Output: a Markdown table per category (photos, codes, read % of each reader, median and p95
+time of each, photos where qrpose took > 1 s, qrpose failures) with an overall row (read %
+over all codes, times over all photos), then codes read by one reader only, decoded
+quadrilaterals that match no label, and failures. --json OUT.json: per-image details.
+Options: --only CATEGORY..., --limit N (first N photos of each category, manifest order),
+--no-zxing, --zxing-decode convert|draft, --repeat N (zxing-cpp runs per photo, median),
+--qrpose-repeat N (qrpose processes per photo, median time), --timeout S.
+
+Runs in target/photo-venv (zxing-cpp, numpy, Pillow; created on first use). The machine's
+load shows in the times: run it on an idle machine, or compare runs made side by side.
+"""
+import argparse, json, sys, time
+from collections import OrderedDict
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import photo_common as pc  # noqa: E402
+
+
+def select(images, only, limit):
+    groups = OrderedDict()
+    for e in images:
+        if only and e["group"] not in only:
+            continue
+        groups.setdefault(e["group"], [])
+        if limit is None or len(groups[e["group"]]) < limit:
+            groups[e["group"]].append(e)
+    return groups
+
+
+def bench_image(root, entry, args, flags):
+    path = root / entry["path"]
+    data = path.read_bytes()
+    w, h = pc.image_size(path)
+    rec = {"path": entry["path"], "group": entry["group"], "size": [w, h],
+           "exif_orientation": pc.exif_orientation(path)}
+    labels = entry.get("corners")
+    by_text = labels is None
+    rec["codes"] = len(entry.get("expected_texts") or []) if by_text else len(labels)
+    q = pc.run_qrpose(args.qrpose_bin, path, w, h, flags, args.timeout, args.qrpose_repeat)
+    if q["ok"] and q["size"] != [w, h]:
+        q["note"] = "; ".join(filter(None, [q.get("note"), f"qrpose saw {q['size']}, Pillow {[w, h]}"]))
+    z = None if args.no_zxing else pc.run_zxing(data, args.repeat, args.zxing_decode)
+    for name, res in (("qrpose", q), ("zxing", z)):
+        if res is None:
+            continue
+        dets = res["markers"] if name == "qrpose" else res["results"]
+        if by_text:
+            matched, extras = pc.match_texts(entry.get("expected_texts") or [], dets)
+            res["read"] = matched
+            res["unmatched_decoded"] = extras
+        else:
+            matched, extra = pc.match_labels(labels, dets)
+            res["read"] = [li for li, _, _ in matched]
+            res["matches"] = matched
+            res["unmatched_decoded"] = len(extra)
+        res["decoded"] = sum(1 for d in dets if d.get("payload"))
+        res["undecoded"] = sum(1 for d in dets if not d.get("payload"))
+        rec[name] = res
+    return rec, by_text
+
+
+def summarise(records):
+    codes = sum(r["codes"] for r in records)
+    out = {"photos": len(records), "codes": codes}
+    for name in ("qrpose", "zxing"):
+        rs = [r[name] for r in records if r.get(name) is not None]
+        if not rs:
+            out[name] = None
+            continue
+        read = sum(len(x["read"]) for x in rs)
+        ms = [x["ms"] for x in rs]
+        out[name] = {"read": read, "read_pct": 100 * read / codes if codes else float("nan"),
+                     "median_ms": pc.median(ms), "p95_ms": pc.pct(ms, 0.95),
+                     "max_ms": max((m for m in ms if m is not None), default=float("nan")),
+                     "over_1s": sum(1 for m in ms if m is not None and m > 1000),
+                     "failures": sum(1 for x in rs if not x["ok"]),
+                     "unmatched_decoded": sum(x["unmatched_decoded"] for x in rs)}
+    return out
+
+
+def row(name, s):
+    def read(k):
+        x = s.get(k)
+        return "–" if x is None else f"{x['read_pct']:.1f} ({x['read']})"
+
+    def t(k, f):
+        x = s.get(k)
+        return "–" if x is None else pc.fmt_ms(x[f])
+    q = s["qrpose"]
+    return (f"| {name} | {s['photos']} | {s['codes']} | {read('qrpose')} | {read('zxing')} | "
+            f"{t('qrpose', 'median_ms')} | {t('qrpose', 'p95_ms')} | {t('zxing', 'median_ms')} | "
+            f"{t('zxing', 'p95_ms')} | {q['over_1s']} | {q['failures']} |")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("manifest_dir", help="folder with manifest.json")
+    ap.add_argument("--only", nargs="+", metavar="CATEGORY", help="these categories only")
+    ap.add_argument("--limit", type=int, help="at most N photos per category (manifest order)")
+    pc.add_common_args(ap)
+    args = ap.parse_args()
+    pc.ensure_venv()
+    flags = pc.qrpose_flags(args)
+    if not Path(args.qrpose_bin).exists():
+        sys.exit(f"no qrpose binary at {args.qrpose_bin}: `cargo build --release` first")
+    root = Path(args.manifest_dir)
+    manifest = json.loads((root / "manifest.json").read_text())
+    groups = select(manifest["images"], set(args.only or []), args.limit)
+    if args.only:
+        missing = set(args.only) - set(groups)
+        if missing:
+            sys.exit(f"no such category: {', '.join(sorted(missing))}")
+    env = pc.environment(args, args.qrpose_bin)
+    if not args.no_zxing:
+        pc.warm_up_zxing()
+    total = sum(len(v) for v in groups.values())
+    records, by_text_any, done, t_start = [], False, 0, time.time()
+    for g, entries in groups.items():
+        for e in entries:
+            rec, by_text = bench_image(root, e, args, flags)
+            by_text_any |= by_text
+            records.append(rec)
+            done += 1
+            q, z = rec["qrpose"], rec.get("zxing")
+            zs = "" if z is None else f" | zxing {len(z['read'])} {pc.fmt_ms(z['ms'] if z['ms'] is not None else float('nan'))} ms"
+            qs = (f"{len(q['read'])} {pc.fmt_ms(q['ms'])} ms" if q["ok"] else f"FAILED ({q['error'][:60]})")
+            print(f"[{done}/{total}] {rec['path']}: {rec['codes']} codes | qrpose {qs}{zs}",
+                  file=sys.stderr, flush=True)
+    env["loadavg_end"] = __import__("os").getloadavg()
+    env["elapsed_s"] = round(time.time() - t_start, 1)
+
+    per_group = OrderedDict((g, summarise([r for r in records if r["group"] == g])) for g in groups)
+    overall = summarise(records)
+
+    print(f"qrpose: `{env['qrpose_bin']}` (built {env['qrpose_bin_mtime']}, tree {env['git_head']}), "
+          f"flags: `{' '.join(flags) or '(none)'}`; zxing-cpp {env['zxing_cpp']} (PyPI), Pillow "
+          f"{env['pillow']}, decode `{args.zxing_decode}`, runs per image: qrpose {args.qrpose_repeat}, zxing-cpp {args.repeat} (median); "
+          f"EXIF orientation {env['exif_orientation']}.")
+    print(f"Read = decoded quadrilateral with IoU >= 0.5 to a label" if not by_text_any else
+          "Read = expected payload decoded (this manifest has no corner labels)", end="")
+    print(f"; times in ms: qrpose timing_ms.decode + detect, zxing-cpp decode + read_barcodes. "
+          f"Load average {env['loadavg_start'][0]:.1f} -> {env['loadavg_end'][0]:.1f} on "
+          f"{env['cpus']} CPUs; {env['elapsed_s']} s.\n")
+    print("| category | photos | codes | qrpose read % (n) | zxing-cpp read % (n) | qrpose median ms | "
+          "qrpose p95 ms | zxing-cpp median ms | zxing-cpp p95 ms | qrpose > 1 s | qrpose failures |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for g, s in per_group.items():
+        print(row(g, s))
+    print(row("**all**", overall))
+
+    if not args.no_zxing:
+        only_q = sum(len(set(r["qrpose"]["read"]) - set(r["zxing"]["read"])) for r in records)
+        only_z = sum(len(set(r["zxing"]["read"]) - set(r["qrpose"]["read"])) for r in records)
+        both = sum(len(set(r["zxing"]["read"]) & set(r["qrpose"]["read"])) for r in records)
+        print(f"\nCodes read by both: {both}; by qrpose only: {only_q}; by zxing-cpp only: {only_z}.")
+    print(f"Decoded quadrilaterals matching no label (unlabelled codes, or corners off by IoU < 0.5): "
+          f"qrpose {overall['qrpose']['unmatched_decoded']}"
+          + ("" if args.no_zxing else f", zxing-cpp {overall['zxing']['unmatched_decoded']}") + ".")
+    print(f"Detections without a payload (not counted): qrpose "
+          f"{sum(r['qrpose']['undecoded'] for r in records)}.")
+    slow = sorted((r for r in records if r["qrpose"]["ms"] and r["qrpose"]["ms"] > 1000),
+                  key=lambda r: -r["qrpose"]["ms"])
+    print(f"qrpose > 1 s: {len(slow)} of {len(records)} photos"
+          + (": " + ", ".join(f"{r['path']} ({r['qrpose']['ms']:.0f} ms)" for r in slow[:15])
+             + (" …" if len(slow) > 15 else "") if slow else "") + ".")
+    fails = [r for r in records if not r["qrpose"]["ok"]]
+    if fails:
+        print(f"qrpose failures ({len(fails)}, counted as nothing read):")
+        for r in fails:
+            print(f"  - {r['path']}: {r['qrpose']['error']}")
+    zfails = [r for r in records if r.get("zxing") and not r["zxing"]["ok"]]
+    if zfails:
+        print(f"zxing-cpp failures ({len(zfails)}, counted as nothing read):")
+        for r in zfails:
+            print(f"  - {r['path']}: {r['zxing']['error']}")
+    notes = [r for r in records if r["qrpose"].get("note")]
+    for r in notes:
+        print(f"  note {r['path']}: {r['qrpose']['note']}")
+
+    if args.json:
+        out = {"environment": env, "manifest_dir": str(root), "matching":
+               "payload" if by_text_any else "iou>=0.5", "per_category": per_group,
+               "overall": overall, "images": records}
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(out, indent=1))
+        print(f"\nPer-image details: {args.json}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,345 @@
+#!/usr/bin/env python3
+"""Shared pieces of scripts/photo_bench.py and scripts/nocode_bench.py (issue 12, real camera
+frames): the venv, running `qrpose estimate --image` and zxing-cpp (PyPI) on the same bytes,
+quadrilateral IoU and label matching, percentiles. Not meant to be run by itself.
+
+Conventions (the same on both sides, so that both readers see the same pixels):
+
+* EXIF orientation is NOT applied. qrpose's decoder (crates/qrpose-detect/src/decode: zune-jpeg
+  luma, or the `image` crate for PNG/WebP) ignores the EXIF Orientation tag, and so does
+  `PIL.Image.open(...).convert('L')` (Pillow only rotates on `ImageOps.exif_transpose`). The
+  boofcv-dev labels are in the stored (un-rotated) pixel grid too: the four `lots/` photos
+  tagged Orientation=6 have labels that only fit the raw 4032x3024 grid.
+* qrpose time = the binary's own `timing_ms.decode + timing_ms.detect` (process start-up,
+  file reading, pose and JSON are not counted). zxing-cpp time = `time.perf_counter()` around
+  Pillow decode to 8-bit grey + `zxingcpp.read_barcodes(..., formats=QRCode)` with the
+  library's default options (rotate, invert, downscale), as scripts/speed_zxing_pypi.py;
+  the file's bytes are read into memory before the clock starts, on both sides.
+  `--zxing-decode draft` makes Pillow decode JPEG luma directly (libjpeg-turbo grayscale
+  output, like qrpose's zune-jpeg luma path and like OpenCV's IMREAD_GRAYSCALE in
+  speed_zxing_pypi.py) instead of RGB + convert('L').
+* Percentiles are nearest-rank, `sorted(v)[round((n - 1) * q)]`, as scripts/accuracy_images.py.
+
+The venv is target/photo-venv (zxing-cpp, numpy, Pillow from PyPI), created on first use; the
+scripts re-execute themselves inside it.
+"""
+import io, json, os, shlex, statistics, subprocess, sys, time, venv
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+VENV = ROOT / "target" / "photo-venv"
+DEFAULT_BIN = ROOT / "target" / "release" / "qrpose"
+PACKAGES = ["zxing-cpp", "numpy", "Pillow"]
+
+
+def ensure_venv():
+    """Creates target/photo-venv if needed and re-executes the calling script inside it."""
+    py = VENV / "bin" / "python3"
+    if not py.exists():
+        venv.create(VENV, with_pip=True)
+    if Path(sys.prefix).resolve() == VENV.resolve() or os.environ.get("QRPOSE_PHOTO_VENV") == "1":
+        return
+    probe = subprocess.run([str(py), "-c", "import zxingcpp, numpy, PIL"], capture_output=True)
+    if probe.returncode != 0:
+        subprocess.check_call([str(py), "-m", "pip", "install", "-q"] + PACKAGES)
+    os.environ["QRPOSE_PHOTO_VENV"] = "1"
+    os.execv(str(py), [str(py)] + sys.argv)
+
+
+def add_common_args(ap):
+    ap.add_argument("--qrpose-bin", default=str(DEFAULT_BIN),
+                    help="the qrpose binary (default: target/release/qrpose)")
+    ap.add_argument("--qrpose-flag", action="append", default=[], metavar="FLAG",
+                    help="extra argument(s) for `qrpose estimate`, forwarded as given; repeatable; "
+                         "a value with spaces is split like a shell would "
+                         "(--qrpose-flag=--detector=rxing, --qrpose-flag='--effort fast')")
+    ap.add_argument("--timeout", type=float, default=60.0,
+                    help="seconds before a qrpose run counts as failed (default 60)")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="zxing-cpp runs per image; its time is their median (default 1)")
+    ap.add_argument("--qrpose-repeat", type=int, default=1,
+                    help="qrpose runs (processes) per image; its time is their median, its "
+                         "markers those of the first run (default 1)")
+    ap.add_argument("--zxing-decode", choices=["convert", "draft"], default="convert",
+                    help="Pillow decode for zxing-cpp: RGB then convert('L') (default), or "
+                         "JPEG luma directly via Image.draft('L')")
+    ap.add_argument("--no-zxing", action="store_true", help="run qrpose only")
+    ap.add_argument("--json", metavar="OUT.json", help="write per-image details here")
+
+
+def qrpose_flags(args):
+    out = []
+    for f in args.qrpose_flag:
+        out += shlex.split(f)
+    return out
+
+
+def image_size(path_or_bytes):
+    """(width, height) from the header only (Pillow opens lazily)."""
+    from PIL import Image
+    src = io.BytesIO(path_or_bytes) if isinstance(path_or_bytes, (bytes, bytearray)) else path_or_bytes
+    with Image.open(src) as im:
+        return im.size
+
+
+def exif_orientation(path):
+    from PIL import Image
+    with Image.open(path) as im:
+        return im.getexif().get(0x0112)
+
+
+def run_qrpose(binary, image_path, width, height, flags, timeout, repeat=1):
+    """`qrpose estimate --image`, `repeat` times: the first run's result, with ms, decode_ms
+    and detect_ms the medians over the runs (runs_ms lists them; a failure in any run makes
+    the whole a failure; `note` says when the decoded payloads differed between runs)."""
+    first = _run_qrpose_once(binary, image_path, width, height, flags, timeout)
+    if repeat <= 1 or not first["ok"]:
+        first["runs_ms"] = [first["ms"]]
+        return first
+    runs = [first]
+    for _ in range(repeat - 1):
+        r = _run_qrpose_once(binary, image_path, width, height, flags, timeout)
+        if not r["ok"]:
+            r["runs_ms"] = [x["ms"] for x in runs] + [None]
+            return r
+        runs.append(r)
+    for k in ("ms", "decode_ms", "detect_ms", "wall_ms"):
+        first[k] = statistics.median(x[k] for x in runs)
+    first["runs_ms"] = [x["ms"] for x in runs]
+    payloads = {tuple(sorted(m["payload"] or "" for m in x["markers"])) for x in runs}
+    if len(payloads) > 1:
+        first["note"] = f"decoded payloads differ between the {repeat} runs"
+    return first
+
+
+def _run_qrpose_once(binary, image_path, width, height, flags, timeout):
+    """One `qrpose estimate --image` run. Returns a dict: ok, error, ms (decode + detect),
+    decode_ms, detect_ms, wall_ms, markers [{payload, corners}], size."""
+    f = float(max(width, height))
+    cmd = [str(binary), "estimate", "--image", str(image_path),
+           "--fx-px", repr(f), "--fy-px", repr(f),
+           "--cx-px", repr((width - 1) / 2), "--cy-px", repr((height - 1) / 2),
+           "--marker-size-mm", "50"] + list(flags)
+    out = {"ok": False, "error": None, "ms": None, "decode_ms": None, "detect_ms": None,
+           "wall_ms": None, "markers": [], "size": None}
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, capture_output=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        out["wall_ms"] = 1e3 * (time.perf_counter() - t0)
+        out["error"] = f"timeout after {timeout:g} s"
+        return out
+    out["wall_ms"] = 1e3 * (time.perf_counter() - t0)
+    if proc.returncode != 0:
+        err = proc.stderr.decode("utf-8", "replace").strip().replace("\n", " ")
+        out["error"] = f"exit {proc.returncode}: {err[:300]}"
+        return out
+    try:
+        resp = json.loads(proc.stdout)
+        timing = resp["timing_ms"]
+        out["decode_ms"] = float(timing["decode"])
+        out["detect_ms"] = float(timing["detect"])
+        out["ms"] = out["decode_ms"] + out["detect_ms"]
+        out["size"] = [resp["image"]["width_px"], resp["image"]["height_px"]]
+        for m in resp.get("markers") or []:
+            out["markers"].append({"payload": m.get("payload"),
+                                   "corners": [[float(u), float(v)] for u, v in m["corners_px"]]})
+    except (ValueError, KeyError, TypeError) as e:
+        out["error"] = f"unreadable output ({type(e).__name__}: {e})"
+        return out
+    out["ok"] = True
+    return out
+
+
+def run_zxing(data, repeat=1, mode="convert"):
+    """zxing-cpp on encoded bytes: Pillow decode to grey + read_barcodes, timed together.
+    Returns a dict: ok, error, ms (median over `repeat`), runs_ms, results [{payload, corners}]."""
+    import zxingcpp
+    from PIL import Image
+    runs, results, error = [], [], None
+    for _ in range(max(1, repeat)):
+        try:
+            t0 = time.perf_counter()
+            im = Image.open(io.BytesIO(data))
+            if mode == "draft":
+                im.draft("L", im.size)
+            gray = im.convert("L")
+            found = zxingcpp.read_barcodes(gray, formats=zxingcpp.BarcodeFormat.QRCode)
+            t1 = time.perf_counter()
+        except Exception as e:  # a reader crash on one image counts as nothing read
+            return {"ok": False, "error": f"{type(e).__name__}: {e}", "ms": None,
+                    "runs_ms": runs, "results": []}
+        runs.append(1e3 * (t1 - t0))
+        results = []
+        for b in found:
+            p = b.position
+            text = b.text if b.valid else None
+            raw = bytes(b.bytes) if b.valid else b""
+            results.append({"payload": text if (text or raw) else None,
+                            "corners": [[p.top_left.x, p.top_left.y], [p.top_right.x, p.top_right.y],
+                                        [p.bottom_right.x, p.bottom_right.y],
+                                        [p.bottom_left.x, p.bottom_left.y]]})
+    return {"ok": True, "error": error, "ms": statistics.median(runs), "runs_ms": runs,
+            "results": results}
+
+
+def warm_up_zxing():
+    """One untimed read, so that the first timed image does not pay for the library's start."""
+    import zxingcpp
+    from PIL import Image
+    zxingcpp.read_barcodes(Image.new("L", (64, 64), 255), formats=zxingcpp.BarcodeFormat.QRCode)
+
+
+# --- geometry -------------------------------------------------------------------------------
+
+def _cross(o, a, b):
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+def convex_hull(points):
+    """Counter-clockwise convex hull (monotone chain). Makes the IoU independent of the corner
+    order a reader uses, and of a self-intersecting (bow-tie) order."""
+    pts = sorted(set((float(x), float(y)) for x, y in points))
+    if len(pts) <= 2:
+        return pts
+    lower, upper = [], []
+    for p in pts:
+        while len(lower) >= 2 and _cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    for p in reversed(pts):
+        while len(upper) >= 2 and _cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return lower[:-1] + upper[:-1]
+
+
+def area(poly):
+    n = len(poly)
+    return abs(sum(poly[i][0] * poly[(i + 1) % n][1] - poly[(i + 1) % n][0] * poly[i][1]
+                   for i in range(n))) / 2 if n >= 3 else 0.0
+
+
+def _clip(subject, clip):
+    """Sutherland-Hodgman: subject ∩ clip, both convex and counter-clockwise."""
+    out = subject
+    n = len(clip)
+    for i in range(n):
+        a, b = clip[i], clip[(i + 1) % n]
+        inp, out = out, []
+        if not inp:
+            break
+        for j in range(len(inp)):
+            p, q = inp[j], inp[(j + 1) % len(inp)]
+            pin, qin = _cross(a, b, p) >= 0, _cross(a, b, q) >= 0
+            if pin:
+                out.append(p)
+            if pin != qin:
+                dx, dy = q[0] - p[0], q[1] - p[1]
+                ex, ey = b[0] - a[0], b[1] - a[1]
+                den = ex * dy - ey * dx
+                if den != 0:
+                    t = (ey * (p[0] - a[0]) - ex * (p[1] - a[1])) / den
+                    out.append((p[0] + t * dx, p[1] + t * dy))
+    return out
+
+
+def quad_iou(q1, q2):
+    """Intersection over union of the convex hulls of two quadrilaterals."""
+    h1, h2 = convex_hull(q1), convex_hull(q2)
+    a1, a2 = area(h1), area(h2)
+    if a1 <= 0 or a2 <= 0:
+        return 0.0
+    x1 = [p[0] for p in h1]; y1 = [p[1] for p in h1]
+    x2 = [p[0] for p in h2]; y2 = [p[1] for p in h2]
+    if max(x1) < min(x2) or max(x2) < min(x1) or max(y1) < min(y2) or max(y2) < min(y1):
+        return 0.0
+    inter = area(_clip(h1, h2))
+    return inter / (a1 + a2 - inter)
+
+
+def match_labels(labels, detections, threshold=0.5):
+    """Greedy one-to-one matching, highest IoU first, of labelled quadrilaterals to decoded
+    detections ({payload, corners}; undecoded ones are ignored). Returns (matched: list of
+    (label index, detection index, iou), unmatched decoded detection indices)."""
+    decoded = [i for i, d in enumerate(detections) if d.get("payload")]
+    pairs = []
+    for li, lab in enumerate(labels):
+        for di in decoded:
+            v = quad_iou(lab, detections[di]["corners"])
+            if v >= threshold:
+                pairs.append((v, li, di))
+    pairs.sort(reverse=True)
+    used_l, used_d, matched = set(), set(), []
+    for v, li, di in pairs:
+        if li in used_l or di in used_d:
+            continue
+        used_l.add(li); used_d.add(di)
+        matched.append((li, di, round(v, 4)))
+    return sorted(matched), [di for di in decoded if di not in used_d]
+
+
+def match_texts(expected, detections):
+    """For manifests without corners (e.g. the zxing-cpp sample set): expected payloads
+    matched to decoded payloads as multisets. Returns (matched expected indices, extras)."""
+    pool = [d["payload"] for d in detections if d.get("payload")]
+    matched = []
+    for i, t in enumerate(expected):
+        if t in pool:
+            pool.remove(t)
+            matched.append(i)
+    return matched, len(pool)
+
+
+# --- statistics -----------------------------------------------------------------------------
+
+def pct(values, q):
+    v = sorted(x for x in values if x is not None)
+    if not v:
+        return float("nan")
+    return v[round((len(v) - 1) * q)]
+
+
+def median(values):
+    v = [x for x in values if x is not None]
+    return statistics.median(v) if v else float("nan")
+
+
+def fmt_ms(x):
+    if x != x:  # nan
+        return "–"
+    return f"{x:.0f}" if x >= 100 else f"{x:.1f}"
+
+
+def environment(args, binary):
+    """What a reader of the numbers needs to rerun them."""
+    import PIL, zxingcpp
+    try:
+        from importlib.metadata import version
+        zx = version("zxing-cpp")
+    except Exception:
+        zx = getattr(zxingcpp, "__version__", "?")
+    b = Path(binary)
+    try:
+        git = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
+                             capture_output=True, text=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True).stdout.strip() != ""
+    except OSError:
+        git, dirty = "?", False
+    return {
+        "command": " ".join(shlex.quote(a) for a in sys.argv),
+        "qrpose_bin": str(b),
+        "qrpose_bin_mtime": time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(b.stat().st_mtime))
+        if b.exists() else None,
+        "qrpose_flags": qrpose_flags(args),
+        "git_head": git + (" (working tree modified)" if dirty else ""),
+        "zxing_cpp": zx,
+        "pillow": PIL.__version__,
+        "zxing_decode": args.zxing_decode,
+        "repeat": args.repeat,
+        "qrpose_repeat": args.qrpose_repeat,
+        "exif_orientation": "not applied on either side (qrpose ignores it; Pillow does too)",
+        "loadavg_start": os.getloadavg(),
+        "cpus": os.cpu_count(),
+    }

@@ -1,0 +1,229 @@
+//! `POST /v1/pose/image` and `qrpose estimate --image`: one photo in, every QR code's
+//! payload, sub-pixel corners and pose out.
+//!
+//! This is the wire layer only: the request forms, their validation into the pipeline's
+//! types, and the response. The work is [`locate_markers`] of the detect crate. The request
+//! comes as JSON ([`ImageRequest`], the multipart `request` part) or as flat parameters
+//! ([`ImageQuery`]: the raw-body query string and the CLI's flags) and is validated before
+//! the image is decoded.
+//!
+//! Decisions a client should know:
+//! - No code found is a success with `markers: []`.
+//! - `payload` is the content as text (decoded by the backend with the symbol's ECI /
+//!   character set); `payload_base64` always carries the raw content bytes (standard
+//!   base64, padded), so binary payloads survive. Both are `null` for a symbol that was
+//!   found but could not be decoded.
+//! - A marker whose pose cannot be computed has `pose: null` and a `problem` (the same
+//!   problem document an error response would carry); the other markers are unaffected.
+//! - `points = "finders"` solves the pose from the twelve finder-pattern corners. It needs
+//!   `method = "reprojection"` (the other methods are defined on four corners): asking for
+//!   both is a 422 `points_need_reprojection`. When `points` is omitted it is `corners`
+//!   ([`DEFAULT_POINTS`]: on the 200-image benchmark finders did not win, see
+//!   docs/detection.md). A marker whose finder corners could not all be measured falls back
+//!   to its four corners, and `points_used` says so.
+
+pub mod query;
+pub mod response;
+
+pub use query::ImageQuery;
+pub use response::{ImageResponse, ImageSizeDto, MarkerResultDto, TimingDto};
+
+use super::problem::{ErrorCode, Problem};
+use super::refusal::{problem_from_decode_error, problem_from_detect_error};
+use super::request::{CameraDto, CornersUnit, MarkerDto, SolverDto, pose_setup};
+use crate::detect::{
+    Backend, DetectorChoice, decode,
+    pipeline::{Options, Points, Setup, locate_markers},
+};
+use crate::estimate::Method;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+use utoipa::ToSchema;
+
+/// Which detector library reads the image.
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema, clap::ValueEnum,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum DetectorDto {
+    /// The best built-in detector (zxing-cpp when built, else rxing), falling back to the
+    /// others and to a contrast-stretched or half-scale second pass when it reads nothing.
+    #[default]
+    Auto,
+    /// rqrr (pure Rust).
+    Rqrr,
+    /// rxing (pure Rust port of ZXing).
+    Rxing,
+    /// zxing-cpp (only in builds with the `zxing-cpp` feature; otherwise a 422
+    /// `detector_unavailable`).
+    ZxingCpp,
+}
+
+impl From<DetectorDto> for DetectorChoice {
+    fn from(d: DetectorDto) -> Self {
+        match d {
+            DetectorDto::Auto => DetectorChoice::Auto,
+            DetectorDto::Rqrr => DetectorChoice::Only(Backend::Rqrr),
+            DetectorDto::Rxing => DetectorChoice::Only(Backend::Rxing),
+            DetectorDto::ZxingCpp => DetectorChoice::Only(Backend::ZxingCpp),
+        }
+    }
+}
+
+/// Which image points the pose is solved from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum PointsDto {
+    /// The symbol's four corners.
+    Corners,
+    /// The twelve outer corners of the three finder patterns (`reprojection` only).
+    Finders,
+}
+
+impl From<PointsDto> for Points {
+    fn from(p: PointsDto) -> Self {
+        match p {
+            PointsDto::Corners => Points::Corners,
+            PointsDto::Finders => Points::Finders,
+        }
+    }
+}
+
+impl From<Points> for PointsDto {
+    fn from(p: Points) -> Self {
+        match p {
+            Points::Corners => PointsDto::Corners,
+            Points::Finders => PointsDto::Finders,
+        }
+    }
+}
+
+/// `POST /v1/pose/image` as JSON (the multipart `request` part): the corners request
+/// without corners, plus the detector and the points to solve from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({
+    "camera": {"fx_px": 1000.0, "fy_px": 1000.0, "cx_px": 639.5, "cy_px": 359.5},
+    "marker": {"size_mm": 50.0},
+    "detector": "auto",
+    "points": "finders"
+}))]
+pub struct ImageRequest {
+    /// Camera intrinsics of the image, pixel or sensor form.
+    pub camera: CameraDto,
+    /// The printed code (every code in the image is assumed to have this size).
+    pub marker: MarkerDto,
+    /// Solver and parameters (all optional).
+    #[serde(default)]
+    pub solver: SolverDto,
+    /// Detector library (default `auto`).
+    #[serde(default)]
+    pub detector: DetectorDto,
+    /// Points to solve from (default `corners`; `finders` needs `reprojection`).
+    #[serde(default)]
+    pub points: Option<PointsDto>,
+}
+
+/// A validated image request: what [`locate_markers`] takes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ValidImageRequest {
+    /// Camera, marker, solver.
+    pub setup: Setup,
+    /// Detector and points.
+    pub options: Options,
+}
+
+/// The default `points` with `method = reprojection`, chosen from the accuracy benchmark
+/// (`docs/detection.md`).
+pub const DEFAULT_POINTS: PointsDto = PointsDto::Corners;
+
+impl ImageRequest {
+    /// Validates the request (before any image is decoded).
+    ///
+    /// # Errors
+    /// The corners request's camera / marker / solver problems; `detector_unavailable` for
+    /// a backend not in this build; `points_need_reprojection` for `finders` with another
+    /// method.
+    pub fn validate(&self) -> Result<ValidImageRequest, Problem> {
+        let setup = pose_setup(&self.camera, &self.marker, &self.solver, CornersUnit::Px)?;
+        let detector: DetectorChoice = self.detector.into();
+        if let DetectorChoice::Only(backend) = detector
+            && !backend.is_built()
+        {
+            return Err(Problem::new(
+                ErrorCode::DetectorUnavailable,
+                format!(
+                    "the {} detector is not built into this server (cargo feature `zxing-cpp`); use auto, rqrr or rxing",
+                    backend.as_str()
+                ),
+            )
+            .with_field("/detector"));
+        }
+        let reprojection = setup.solver.method() == Method::Reprojection;
+        let points = match self.points {
+            Some(PointsDto::Finders) if !reprojection => {
+                return Err(Problem::new(
+                    ErrorCode::PointsNeedReprojection,
+                    "points = finders needs method = reprojection: the paper and depth-newton methods are defined on the four corners",
+                )
+                .with_field("/points"));
+            }
+            Some(p) => p,
+            None if reprojection => DEFAULT_POINTS,
+            None => PointsDto::Corners,
+        };
+        Ok(ValidImageRequest {
+            setup: Setup {
+                camera: setup.camera,
+                marker: setup.marker,
+                solver: setup.solver,
+            },
+            options: Options {
+                detector,
+                points: points.into(),
+            },
+        })
+    }
+}
+
+/// Decodes an image, finds and reads every QR code, refines its corners and estimates its
+/// pose. CPU-bound and synchronous.
+///
+/// # Errors
+/// A [`Problem`] for an invalid request (422, before decoding), an image over `limits`
+/// (413 `payload_too_large` / `image_too_large`) or one that cannot be decoded (422
+/// `undecodable_image`). Finding no code is not an error; neither is a marker without a
+/// pose (it carries its own `problem`).
+pub fn estimate_image(
+    bytes: &[u8],
+    request: &ImageRequest,
+    limits: &decode::DecodeLimits,
+) -> Result<ImageResponse, Problem> {
+    let valid = request.validate()?;
+    let started = Instant::now();
+    let image = decode::decode_gray(bytes, limits).map_err(|e| problem_from_decode_error(&e))?;
+    let decode_ms = started.elapsed().as_secs_f64() * 1e3;
+    let located = locate_markers(&image, &valid.setup, &valid.options)
+        .map_err(|e| problem_from_detect_error(&e))?;
+    let size = ImageSizeDto {
+        width_px: image.width(),
+        height_px: image.height(),
+    };
+    Ok(ImageResponse::new(&located, &valid.setup, size, decode_ms))
+}
+
+/// [`estimate_image`] for a request given as flat parameters (the raw-body query string,
+/// the CLI's flags): a problem's `field` names the parameter.
+///
+/// # Errors
+/// As [`estimate_image`], and `missing_field` without the marker size.
+pub fn estimate_image_from_query(
+    bytes: &[u8],
+    query: ImageQuery,
+    limits: &decode::DecodeLimits,
+) -> Result<ImageResponse, Problem> {
+    query
+        .into_request()
+        .and_then(|request| estimate_image(bytes, &request, limits))
+        .map_err(ImageQuery::problem_in_query_terms)
+}

@@ -1,0 +1,267 @@
+//! The image request as flat parameters: the query string of `POST /v1/pose/image` with a
+//! raw image body, and the flags of `qrpose estimate --image`. One struct serves both
+//! ([`ImageQuery`] derives serde's `Deserialize`, utoipa's `IntoParams` and clap's `Args`),
+//! so every parameter has the same name, type, documentation and refusals in each.
+//!
+//! Validation runs on the JSON form ([`ImageRequest`]) that the parameters stand for; a
+//! problem's `field`, a JSON pointer there (`/camera/fx_px`), is then renamed to the
+//! parameter the client wrote (`fx_px`) by [`ImageQuery::problem_in_query_terms`].
+
+use super::{DetectorDto, ImageRequest, PointsDto};
+use crate::api::problem::{ErrorCode, Problem};
+use crate::api::request::{CameraDto, DistortionDto, MarkerDto, MethodDto, SolverDto};
+use serde::{Deserialize, Serialize};
+use utoipa::IntoParams;
+
+/// The image request as flat parameters (query string or command-line flags). Numeric flags
+/// take negative values, so that `--fx-px -5` is refused by the same check, with the same
+/// problem, as `fx_px=-5`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, IntoParams, clap::Args)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct ImageQuery {
+    /// Horizontal focal length, px.
+    #[arg(long, allow_negative_numbers = true)]
+    pub fx_px: Option<f64>,
+    /// Vertical focal length, px.
+    #[arg(long, allow_negative_numbers = true)]
+    pub fy_px: Option<f64>,
+    /// Principal point, horizontal, px (integer = pixel centre).
+    #[arg(long, allow_negative_numbers = true)]
+    pub cx_px: Option<f64>,
+    /// Principal point, vertical, px.
+    #[arg(long, allow_negative_numbers = true)]
+    pub cy_px: Option<f64>,
+    /// Lens focal length, mm (sensor form, with `pixel_size_um`).
+    #[arg(long, allow_negative_numbers = true)]
+    pub focal_length_mm: Option<f64>,
+    /// Pixel pitch, µm (sensor form).
+    #[arg(long, allow_negative_numbers = true)]
+    pub pixel_size_um: Option<f64>,
+    /// Radial distortion r² coefficient (OpenCV's k1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub k1: Option<f64>,
+    /// Radial r⁴ coefficient.
+    #[arg(long, allow_negative_numbers = true)]
+    pub k2: Option<f64>,
+    /// Radial r⁶ coefficient.
+    #[arg(long, allow_negative_numbers = true)]
+    pub k3: Option<f64>,
+    /// Tangential coefficient p1.
+    #[arg(long, allow_negative_numbers = true)]
+    pub p1: Option<f64>,
+    /// Tangential coefficient p2.
+    #[arg(long, allow_negative_numbers = true)]
+    pub p2: Option<f64>,
+    /// Side of the QR symbol, mm (finder edge to finder edge, quiet zone excluded). Required.
+    #[arg(long, allow_negative_numbers = true)]
+    pub marker_size_mm: Option<f64>,
+    /// Solver: `paper`, `depth-newton` or `reprojection` (default).
+    #[arg(long, value_enum)]
+    pub method: Option<MethodDto>,
+    /// Detector: `auto` (default), `rqrr`, `rxing`, `zxing-cpp`.
+    #[arg(long, value_enum)]
+    pub detector: Option<DetectorDto>,
+    /// Points: `corners` or `finders` (default as in the JSON form).
+    #[arg(long, value_enum)]
+    pub points: Option<PointsDto>,
+    /// Starting depth, mm (`paper`, `depth-newton`).
+    #[arg(long, allow_negative_numbers = true)]
+    pub initial_z_mm: Option<f64>,
+    /// Gain k of the paper's Eq. 12 (`paper`).
+    #[arg(long, allow_negative_numbers = true)]
+    pub gain: Option<f64>,
+    /// Convergence threshold, mm (`paper`).
+    #[arg(long, allow_negative_numbers = true)]
+    pub tolerance_mm: Option<f64>,
+    /// Iteration limit, 1 to 10000.
+    #[arg(long, allow_negative_numbers = true)]
+    pub max_iterations: Option<u64>,
+    /// Return the per-iteration trace.
+    #[arg(long)]
+    pub trace: Option<bool>,
+    /// Corner noise σ for the covariance, px.
+    #[arg(long, allow_negative_numbers = true)]
+    pub corner_sigma_px: Option<f64>,
+}
+
+/// The JSON pointer of the marker size, the one parameter whose name is not the last
+/// segment of its pointer.
+const MARKER_SIZE_POINTER: &str = "/marker/size_mm";
+/// The query parameter of the marker size.
+const MARKER_SIZE_PARAMETER: &str = "marker_size_mm";
+
+impl ImageQuery {
+    /// The JSON-form request these parameters stand for.
+    ///
+    /// # Errors
+    /// `missing_field` (field `marker_size_mm`) when the marker size is absent.
+    pub fn into_request(self) -> Result<ImageRequest, Problem> {
+        let size_mm = self.marker_size_mm.ok_or_else(|| {
+            Problem::new(ErrorCode::MissingField, "marker_size_mm is required")
+                .with_field(MARKER_SIZE_PARAMETER)
+        })?;
+        let any_distortion = [self.k1, self.k2, self.k3, self.p1, self.p2]
+            .iter()
+            .any(Option::is_some);
+        let distortion = any_distortion.then(|| DistortionDto {
+            k1: self.k1.unwrap_or(0.0),
+            k2: self.k2.unwrap_or(0.0),
+            p1: self.p1.unwrap_or(0.0),
+            p2: self.p2.unwrap_or(0.0),
+            k3: self.k3.unwrap_or(0.0),
+        });
+        let defaults = SolverDto::default();
+        Ok(ImageRequest {
+            camera: CameraDto {
+                fx_px: self.fx_px,
+                fy_px: self.fy_px,
+                cx_px: self.cx_px,
+                cy_px: self.cy_px,
+                focal_length_mm: self.focal_length_mm,
+                pixel_size_um: self.pixel_size_um,
+                distortion,
+            },
+            marker: MarkerDto { size_mm },
+            solver: SolverDto {
+                method: self.method.unwrap_or(defaults.method),
+                initial_z_mm: self.initial_z_mm,
+                gain: self.gain.unwrap_or(defaults.gain),
+                tolerance_mm: self.tolerance_mm.unwrap_or(defaults.tolerance_mm),
+                max_iterations: self.max_iterations.unwrap_or(defaults.max_iterations),
+                trace: self.trace.unwrap_or(defaults.trace),
+                corner_sigma_px: self.corner_sigma_px.unwrap_or(defaults.corner_sigma_px),
+            },
+            detector: self.detector.unwrap_or_default(),
+            points: self.points,
+        })
+    }
+
+    /// The names of the parameters, as documented (utoipa's `IntoParams`).
+    pub fn parameter_names() -> Vec<String> {
+        Self::into_params(|| None)
+            .into_iter()
+            .map(|p| p.name)
+            .collect()
+    }
+
+    /// The parameter that stands for the value at `pointer` in [`ImageRequest`]: the last
+    /// segment of the pointer (`/camera/distortion/k1` → `k1`), except the marker size; a
+    /// pointer that no single parameter stands for (`/camera`, the camera's form as a
+    /// whole) has none.
+    pub fn parameter_of_pointer(pointer: &str) -> Option<String> {
+        if pointer == MARKER_SIZE_POINTER {
+            return Some(MARKER_SIZE_PARAMETER.to_owned());
+        }
+        let last = pointer.rsplit('/').next()?;
+        Self::parameter_names()
+            .into_iter()
+            .find(|name| name == last)
+    }
+
+    /// `problem` with its `field` turned from a JSON pointer into the [`ImageRequest`] into
+    /// the query parameter a client sent (`/camera/fx_px` → `fx_px`). A field that is
+    /// already a parameter name is kept; one that no parameter stands for is dropped.
+    pub fn problem_in_query_terms(problem: Problem) -> Problem {
+        let field = problem.field.as_deref().and_then(|field| {
+            if field.starts_with('/') {
+                Self::parameter_of_pointer(field)
+            } else {
+                Some(field.to_owned())
+            }
+        });
+        Problem { field, ..problem }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn every_parameter_set() -> ImageQuery {
+        ImageQuery {
+            fx_px: Some(1.0),
+            fy_px: Some(1.0),
+            cx_px: Some(1.0),
+            cy_px: Some(1.0),
+            focal_length_mm: Some(1.0),
+            pixel_size_um: Some(1.0),
+            k1: Some(0.5),
+            k2: Some(0.5),
+            k3: Some(0.5),
+            p1: Some(0.5),
+            p2: Some(0.5),
+            marker_size_mm: Some(1.0),
+            method: Some(MethodDto::Paper),
+            detector: Some(DetectorDto::Rqrr),
+            points: Some(PointsDto::Corners),
+            initial_z_mm: Some(1.0),
+            gain: Some(1.0),
+            tolerance_mm: Some(1.0),
+            max_iterations: Some(1),
+            trace: Some(true),
+            corner_sigma_px: Some(1.0),
+        }
+    }
+
+    /// Every JSON pointer of a value in `value`, depth first.
+    fn leaf_pointers(value: &serde_json::Value, prefix: &str, out: &mut Vec<String>) {
+        match value {
+            serde_json::Value::Object(map) => {
+                for (key, v) in map {
+                    leaf_pointers(v, &format!("{prefix}/{key}"), out);
+                }
+            }
+            serde_json::Value::Null => {}
+            _ => out.push(prefix.to_owned()),
+        }
+    }
+
+    #[test]
+    fn every_query_parameter_maps_to_one_request_value_and_back() {
+        let all = every_parameter_set();
+        let names = ImageQuery::parameter_names();
+        let serialised = serde_json::to_value(&all).expect("serialisable");
+        let mut serialised: Vec<&String> =
+            serialised.as_object().expect("an object").keys().collect();
+        serialised.sort();
+        let mut documented: Vec<&String> = names.iter().collect();
+        documented.sort();
+        assert_eq!(
+            serialised, documented,
+            "documented = deserialised parameters"
+        );
+        let request =
+            serde_json::to_value(all.into_request().expect("complete")).expect("serialisable");
+        let mut pointers = Vec::new();
+        leaf_pointers(&request, "", &mut pointers);
+        let mut mapped: Vec<String> = pointers
+            .iter()
+            .map(|p| ImageQuery::parameter_of_pointer(p).unwrap_or_else(|| panic!("{p}")))
+            .collect();
+        mapped.sort();
+        let mut expected = names.clone();
+        expected.sort();
+        assert_eq!(mapped, expected, "each request value has its parameter");
+    }
+
+    #[test]
+    fn problems_name_the_query_parameter() {
+        let cases = [
+            (Some("/camera/fx_px"), Some("fx_px")),
+            (Some("/camera/distortion/k1"), Some("k1")),
+            (Some("/marker/size_mm"), Some("marker_size_mm")),
+            (Some("/solver/max_iterations"), Some("max_iterations")),
+            (Some("/detector"), Some("detector")),
+            (Some("marker_size_mm"), Some("marker_size_mm")),
+            (Some("/camera"), None),
+            (None, None),
+        ];
+        for (field, expected) in cases {
+            let mut problem = Problem::new(ErrorCode::IncompleteCamera, "x");
+            problem.field = field.map(str::to_owned);
+            let renamed = ImageQuery::problem_in_query_terms(problem);
+            assert_eq!(renamed.field.as_deref(), expected, "{field:?}");
+        }
+    }
+}

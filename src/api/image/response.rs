@@ -1,0 +1,149 @@
+//! The response of `POST /v1/pose/image`: every code found, with its payload, corners,
+//! refinement and pose, and the time per stage.
+
+use super::PointsDto;
+use crate::api::problem::Problem;
+use crate::api::refusal::problem_from_marker_error;
+use crate::api::response::PoseResponse;
+use crate::detect::{
+    corners::RefineStatus,
+    pipeline::{Located, LocatedMarker, Setup},
+};
+use crate::geometry::frames::PixelPoint;
+use base64::Engine;
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+/// The image's size.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct ImageSizeDto {
+    /// Width, px.
+    pub width_px: usize,
+    /// Height, px.
+    pub height_px: usize,
+}
+
+/// Time per stage, ms.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TimingDto {
+    /// Image decoding, ms.
+    pub decode: f64,
+    /// Detection, reading and corner refinement, ms.
+    pub detect: f64,
+    /// Pose estimation of every marker, ms.
+    pub estimate: f64,
+}
+
+/// One QR code found in the image.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct MarkerResultDto {
+    /// The content as text; null when the symbol was found but not decoded, or its bytes
+    /// are not text.
+    #[schema(example = "SKU-1")]
+    pub payload: Option<String>,
+    /// The raw content bytes, standard base64 with padding; null when not decoded.
+    #[schema(example = "U0tVLTE=")]
+    pub payload_base64: Option<String>,
+    /// The symbol's corners, px, `"qr"` order (top-left, top-right, bottom-right,
+    /// bottom-left), sub-pixel when `corners_refined` is true.
+    pub corners_px: [[f64; 2]; 4],
+    /// Whether the corners were refined from the image (false: the detector's whole-pixel
+    /// corners, see `refinement`).
+    pub corners_refined: bool,
+    /// How corner refinement ended: `refined`, or why the detector's corners were kept
+    /// (`too_few_edges`, `moved_too_far`, `too_small`, `unknown_module_count`).
+    #[schema(example = "refined")]
+    pub refinement: String,
+    /// The twelve outer corners of the three finder patterns, px: top-left finder (its TL,
+    /// TR, BR, BL), then the top-right finder, then the bottom-left finder; null when not
+    /// all were measured.
+    #[schema(value_type = Option<Vec<[f64; 2]>>)]
+    pub finder_corners_px: Option<Vec<[f64; 2]>>,
+    /// Modules per side (21 for version 1, 4 more per version).
+    pub module_count: Option<usize>,
+    /// The detector library that found the symbol: `rqrr`, `rxing` or `zxing-cpp`.
+    #[schema(example = "rxing")]
+    pub detector: String,
+    /// The points the pose was solved from.
+    pub points_used: PointsDto,
+    /// The marker's pose; null when it could not be computed (see `problem`).
+    pub pose: Option<PoseResponse>,
+    /// Why `pose` is null: the problem document of this marker alone.
+    pub problem: Option<Problem>,
+}
+
+/// `POST /v1/pose/image` response.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ImageResponse {
+    /// The decoded image's size.
+    pub image: ImageSizeDto,
+    /// Every QR code found (empty when none).
+    pub markers: Vec<MarkerResultDto>,
+    /// Time per stage, ms.
+    pub timing_ms: TimingDto,
+}
+
+fn pairs<const K: usize>(points: &[PixelPoint; K]) -> [[f64; 2]; K] {
+    points.map(|p| [p.u(), p.v()])
+}
+
+impl MarkerResultDto {
+    /// The wire form of marker `index` of a photo.
+    pub fn new(located: &LocatedMarker, index: usize, setup: &Setup) -> Self {
+        let (pose, problem) = match &located.pose {
+            Ok(e) => (
+                Some(PoseResponse::new(
+                    e,
+                    &setup.camera,
+                    &setup.marker,
+                    located.estimate_us,
+                )),
+                None,
+            ),
+            Err(err) => (None, Some(problem_from_marker_error(*err, index))),
+        };
+        let code = &located.code;
+        let c = &code.candidate;
+        Self {
+            payload: c.text.clone(),
+            payload_base64: c
+                .payload
+                .as_ref()
+                .map(|b| base64::engine::general_purpose::STANDARD.encode(b)),
+            corners_px: pairs(code.corners_px()),
+            corners_refined: code.refinement.status == RefineStatus::Refined,
+            refinement: code.refinement.status.as_str().to_owned(),
+            finder_corners_px: code
+                .refinement
+                .finder_corners_px
+                .as_ref()
+                .map(|f| pairs(f).to_vec()),
+            module_count: code.refinement.module_count,
+            detector: c.backend.as_str().to_owned(),
+            points_used: located.points_used.into(),
+            pose,
+            problem,
+        }
+    }
+}
+
+impl ImageResponse {
+    /// The wire form of what [`locate_markers`](crate::detect::pipeline::locate_markers)
+    /// found in an image of `image` size, decoded in `decode_ms`.
+    pub fn new(located: &Located, setup: &Setup, image: ImageSizeDto, decode_ms: f64) -> Self {
+        Self {
+            image,
+            markers: located
+                .markers
+                .iter()
+                .enumerate()
+                .map(|(index, m)| MarkerResultDto::new(m, index, setup))
+                .collect(),
+            timing_ms: TimingDto {
+                decode: decode_ms,
+                detect: located.detect_ms,
+                estimate: located.estimate_ms,
+            },
+        }
+    }
+}

@@ -1,0 +1,197 @@
+//! [`ImageInput`]: the body of `POST /v1/pose/image` in either of its forms, as an axum
+//! extractor whose rejection is the API's own problem document (axum's
+//! "customize-extractor-error" pattern), so that the handler sees only a well-formed input.
+//!
+//! - A raw image body (`image/jpeg` or `image/png`) with the request as query parameters
+//!   ([`ImageQuery`]); a problem's `field` names the query parameter.
+//! - `multipart/form-data` with the parts `image` (the bytes) and `request` (JSON,
+//!   `ImageRequest`); a problem's `field` names the part, or is a JSON pointer into the
+//!   `request` part. Its JSON is parsed later, on the estimation worker.
+//!
+//! The body is read whole (at most the body limit, as every body) before anything is judged,
+//! so that a client still sending a large upload reads its answer instead of a connection
+//! reset; a 415 drains the body for the same reason. The image format is sniffed from the
+//! bytes, so the content type only chooses the form.
+
+use super::{
+    error::ApiError,
+    extract::{self, BodyError},
+    state::AppState,
+};
+use crate::api::{
+    image::ImageQuery,
+    problem::{ErrorCode, Problem},
+};
+use axum::body::Bytes;
+use axum::extract::{FromRequest, Multipart, Request, multipart::MultipartError};
+use axum::http::StatusCode;
+
+/// The raw-body media type of a JPEG.
+pub const JPEG: &str = "image/jpeg";
+/// The raw-body media type of a PNG.
+pub const PNG: &str = "image/png";
+/// The media type of the multipart form.
+pub const MULTIPART: &str = "multipart/form-data";
+/// What a 415 tells the client to send.
+pub const ACCEPTED: &str = "image/jpeg, image/png or multipart/form-data";
+/// The multipart part with the image bytes.
+pub const IMAGE_PART: &str = "image";
+/// The multipart part with the JSON request.
+pub const REQUEST_PART: &str = "request";
+
+/// An image request as read from the body, before the worker parses, decodes and detects.
+#[derive(Debug, Clone)]
+pub enum ImageInput {
+    /// A raw image body and its query parameters, parsed.
+    Raw {
+        /// The image bytes.
+        image: Bytes,
+        /// The query parameters.
+        query: Box<ImageQuery>,
+    },
+    /// A multipart body: the image part and the request part's JSON, not yet parsed.
+    Multipart {
+        /// The `image` part.
+        image: Bytes,
+        /// The `request` part.
+        request_json: Bytes,
+    },
+}
+
+impl FromRequest<AppState> for ImageInput {
+    type Rejection = ApiError;
+
+    async fn from_request(request: Request, state: &AppState) -> Result<Self, ApiError> {
+        let limit_bytes = state.settings.body_limit_bytes;
+        match extract::media_type(request.headers()).as_deref() {
+            Some(JPEG | PNG) => raw_input(request, limit_bytes).await,
+            Some(MULTIPART) => multipart_input(request, state).await,
+            got => {
+                let refusal = ApiError::unsupported_media_type(got, ACCEPTED);
+                extract::discard_body(request, limit_bytes).await;
+                Err(refusal)
+            }
+        }
+    }
+}
+
+/// The raw-body form: the image bytes and the query parameters.
+async fn raw_input(request: Request, limit_bytes: usize) -> Result<ImageInput, ApiError> {
+    let query = request.uri().query().map(str::to_owned);
+    let image = extract::read_body(request, limit_bytes)
+        .await
+        .map_err(|e| body_error(e, ErrorCode::UndecodableImage))?;
+    let query = extract::parse_query::<ImageQuery>(query.as_deref())?;
+    Ok(ImageInput::Raw {
+        image,
+        query: Box::new(query),
+    })
+}
+
+/// The multipart form: the `image` and `request` parts, each exactly once.
+async fn multipart_input(request: Request, state: &AppState) -> Result<ImageInput, ApiError> {
+    let limit_bytes = state.settings.body_limit_bytes;
+    if let Some(parameter) = first_query_parameter(request.uri().query()) {
+        extract::discard_body(request, limit_bytes).await;
+        return Err(Problem::new(
+            ErrorCode::UnknownField,
+            format!(
+                "query parameters are read only with a raw image body; with {MULTIPART} put \
+                 {parameter} into the `{REQUEST_PART}` part"
+            ),
+        )
+        .with_field(parameter)
+        .into());
+    }
+    let request = extract::buffer_body(request, limit_bytes)
+        .await
+        .map_err(|e| body_error(e, ErrorCode::MalformedMultipart))?;
+    let mut multipart = Multipart::from_request(request, state)
+        .await
+        .map_err(|rejection| malformed_multipart(rejection.body_text(), None))?;
+    let (mut image, mut request_json) = (None, None);
+    while let Some(part) = multipart
+        .next_field()
+        .await
+        .map_err(|e| multipart_error(&e, limit_bytes, None))?
+    {
+        let Some(name) = part.name().map(str::to_owned) else {
+            return Err(malformed_multipart(
+                format!("a part has no name; send the parts `{IMAGE_PART}` and `{REQUEST_PART}`"),
+                None,
+            ));
+        };
+        let slot = match name.as_str() {
+            IMAGE_PART => &mut image,
+            REQUEST_PART => &mut request_json,
+            _ => {
+                return Err(Problem::new(
+                    ErrorCode::UnknownField,
+                    format!(
+                        "unknown part `{name}`; send the parts `{IMAGE_PART}` and `{REQUEST_PART}`"
+                    ),
+                )
+                .with_field(name)
+                .into());
+            }
+        };
+        if slot.is_some() {
+            return Err(malformed_multipart(
+                format!("the part `{name}` is given twice"),
+                Some(name),
+            ));
+        }
+        let bytes = part
+            .bytes()
+            .await
+            .map_err(|e| multipart_error(&e, limit_bytes, Some(&name)))?;
+        *slot = Some(bytes);
+    }
+    let image = image.ok_or_else(|| missing_part(IMAGE_PART))?;
+    let request_json = request_json.ok_or_else(|| missing_part(REQUEST_PART))?;
+    Ok(ImageInput::Multipart {
+        image,
+        request_json,
+    })
+}
+
+/// The name of the first query parameter, if the query has any.
+fn first_query_parameter(query: Option<&str>) -> Option<String> {
+    form_urlencoded::parse(query?.as_bytes())
+        .next()
+        .map(|(name, _)| name.into_owned())
+}
+
+fn body_error(err: BodyError, unreadable: ErrorCode) -> ApiError {
+    match err {
+        BodyError::TooLarge { limit_bytes } => ApiError::payload_too_large(limit_bytes),
+        BodyError::Unreadable { .. } => ApiError::new(unreadable, err.to_string()),
+    }
+}
+
+fn malformed_multipart(detail: impl Into<String>, part: Option<String>) -> ApiError {
+    let problem = Problem::new(ErrorCode::MalformedMultipart, detail);
+    ApiError::from(match part {
+        Some(part) => problem.with_field(part),
+        None => problem,
+    })
+}
+
+/// A multipart parse error: 413 when a size limit was hit, else 400 (axum would answer 500
+/// for some stream errors; none of them is a fault of the service here, the body being in
+/// memory already).
+fn multipart_error(err: &MultipartError, limit_bytes: usize, part: Option<&str>) -> ApiError {
+    if err.status() == StatusCode::PAYLOAD_TOO_LARGE {
+        return ApiError::payload_too_large(limit_bytes);
+    }
+    malformed_multipart(err.body_text(), part.map(str::to_owned))
+}
+
+fn missing_part(name: &str) -> ApiError {
+    Problem::new(
+        ErrorCode::MissingField,
+        format!("the multipart body has no part `{name}`"),
+    )
+    .with_field(name)
+    .into()
+}
