@@ -17,7 +17,7 @@ each side (--margin); after --tries (30) misses that size is skipped for that ph
 windows are cut from the RGB-decoded photo and written as JPEG quality 90 (Pillow defaults
 otherwise: 4:2:0, no EXIF) to target/nocode/ (--out), with target/nocode/crops.json listing
 them and the parameters; a later run reuses the crops when crops.json's parameters (source
-manifest hash, seed, sizes, margin, tries, quality, Pillow version) match and every file is
+manifest's hash, seed, sizes, margin, tries, quality, Pillow version) match and every file is
 there with its recorded hash, and rebuilds them otherwise. Photos are never copied: only the
 crops, under target/ (git-ignored).
 
@@ -68,8 +68,9 @@ def build_set(root, manifest_bytes, out_dir, args):
     """The crops, reused from out_dir when its crops.json has the same parameters."""
     import PIL
     from PIL import Image
-    params = {"source_manifest": str(root / "manifest.json"),
-              "source_manifest_sha256": sha256(manifest_bytes), "seed": args.seed,
+    # The manifest is identified by its hash, not its path (a relative and an absolute path
+    # to the same folder must reuse the same crops).
+    params = {"source_manifest_sha256": sha256(manifest_bytes), "seed": args.seed,
               "sizes": SIZES, "margin": args.margin, "tries": args.tries, "jpeg_quality": 90,
               "pillow": PIL.__version__, "exif_orientation": "not applied"}
     index = out_dir / "crops.json"
@@ -117,7 +118,7 @@ def build_set(root, manifest_bytes, out_dir, args):
                           "box": box, "sha256": sha256((out_dir / name).read_bytes())})
         print(f"[{n}/{len(manifest['images'])}] {e['path']}: {len(windows)} crop(s)",
               file=sys.stderr, flush=True)
-    out = {"params": params, "crops": crops, "skipped": skipped,
+    out = {"params": params, "source_manifest": str((root / "manifest.json").resolve()), "crops": crops, "skipped": skipped,
            "built_s": round(time.time() - t0, 1)}
     index.write_text(json.dumps(out, indent=1))
     return out

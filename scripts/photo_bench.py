@@ -183,8 +183,10 @@ def main():
         only_z = sum(len(set(r["zxing"]["read"]) - set(r["qrpose"]["read"])) for r in records)
         both = sum(len(set(r["zxing"]["read"]) & set(r["qrpose"]["read"])) for r in records)
         print(f"\nCodes read by both: {both}; by qrpose only: {only_q}; by zxing-cpp only: {only_z}.")
-    print(f"Decoded quadrilaterals matching no label (unlabelled codes, or corners off by IoU < 0.5): "
-          f"qrpose {overall['qrpose']['unmatched_decoded']}"
+    print(("Decoded payloads matching no expected text (text-mode or encoding differences, or a "
+           "misread): " if by_text_any else
+           "Decoded quadrilaterals matching no label (unlabelled codes, or corners off by IoU < 0.5): ")
+          + f"qrpose {overall['qrpose']['unmatched_decoded']}"
           + ("" if args.no_zxing else f", zxing-cpp {overall['zxing']['unmatched_decoded']}") + ".")
     print(f"Detections without a payload (not counted): qrpose "
           f"{sum(r['qrpose']['undecoded'] for r in records)}.")

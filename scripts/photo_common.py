@@ -88,17 +88,19 @@ def exif_orientation(path):
         return im.getexif().get(0x0112)
 
 
-def run_qrpose(binary, image_path, width, height, flags, timeout, repeat=1):
+def run_qrpose(binary, image_path, width, height, flags, timeout, repeat=1, intrinsics=None):
     """`qrpose estimate --image`, `repeat` times: the first run's result, with ms, decode_ms
     and detect_ms the medians over the runs (runs_ms lists them; a failure in any run makes
-    the whole a failure; `note` says when the decoded payloads differed between runs)."""
-    first = _run_qrpose_once(binary, image_path, width, height, flags, timeout)
+    the whole a failure; `note` says when the decoded payloads differed between runs).
+    intrinsics: optional (fx, fy, cx, cy) in px instead of F = max(w, h) and the centre
+    (scripts/multicode_bench.py passes the renderer's camera)."""
+    first = _run_qrpose_once(binary, image_path, width, height, flags, timeout, intrinsics)
     if repeat <= 1 or not first["ok"]:
         first["runs_ms"] = [first["ms"]]
         return first
     runs = [first]
     for _ in range(repeat - 1):
-        r = _run_qrpose_once(binary, image_path, width, height, flags, timeout)
+        r = _run_qrpose_once(binary, image_path, width, height, flags, timeout, intrinsics)
         if not r["ok"]:
             r["runs_ms"] = [x["ms"] for x in runs] + [None]
             return r
@@ -112,13 +114,14 @@ def run_qrpose(binary, image_path, width, height, flags, timeout, repeat=1):
     return first
 
 
-def _run_qrpose_once(binary, image_path, width, height, flags, timeout):
+def _run_qrpose_once(binary, image_path, width, height, flags, timeout, intrinsics=None):
     """One `qrpose estimate --image` run. Returns a dict: ok, error, ms (decode + detect),
     decode_ms, detect_ms, wall_ms, markers [{payload, corners}], size."""
     f = float(max(width, height))
+    fx, fy, cx, cy = intrinsics or (f, f, (width - 1) / 2, (height - 1) / 2)
     cmd = [str(binary), "estimate", "--image", str(image_path),
-           "--fx-px", repr(f), "--fy-px", repr(f),
-           "--cx-px", repr((width - 1) / 2), "--cy-px", repr((height - 1) / 2),
+           "--fx-px", repr(fx), "--fy-px", repr(fy),
+           "--cx-px", repr(cx), "--cy-px", repr(cy),
            "--marker-size-mm", "50"] + list(flags)
     out = {"ok": False, "error": None, "ms": None, "decode_ms": None, "detect_ms": None,
            "wall_ms": None, "markers": [], "size": None}
@@ -141,6 +144,7 @@ def _run_qrpose_once(binary, image_path, width, height, flags, timeout):
         out["detect_ms"] = float(timing["detect"])
         out["ms"] = out["decode_ms"] + out["detect_ms"]
         out["size"] = [resp["image"]["width_px"], resp["image"]["height_px"]]
+        out["warnings"] = list(resp.get("warnings") or [])
         for m in resp.get("markers") or []:
             out["markers"].append({"payload": m.get("payload"),
                                    "corners": [[float(u), float(v)] for u, v in m["corners_px"]]})

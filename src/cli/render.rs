@@ -1,21 +1,63 @@
 //! `qrpose render`: a synthetic photo of a QR code at a given pose and camera, and its
-//! ground truth (corners px in qr order, finder corners, pose, camera) as JSON on stdout.
+//! ground truth (corners px in qr order, finder corners, pose, camera) as JSON on stdout;
+//! or of several codes, from a JSON scene file (`--scene`) or drawn at random
+//! (`--random-scene`), with the ground truth of every code under `codes`.
 
 use super::estimate::{print_json, report_problem};
 use clap::Args;
 use qrpose::api::problem::{ErrorCode, Problem};
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
-use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
+use qrpose::render::{
+    CodePlacement, EcLevel, Effects, Encoding, MultiScene, Scene, SceneRanges, random_scene,
+    render, render_scene,
+};
+use serde::{Deserialize, Serialize};
 use serde_json::json;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+
+/// The single-code flags that `--scene` replaces (`--random-scene` keeps the image size).
+const SINGLE_CODE_FLAGS: [&str; 13] = [
+    "payload",
+    "ec_level",
+    "marker_size_mm",
+    "fx_px",
+    "fy_px",
+    "cx_px",
+    "cy_px",
+    "x_mm",
+    "y_mm",
+    "z_mm",
+    "alpha_deg",
+    "beta_deg",
+    "gamma_deg",
+];
 
 /// Arguments of `render`.
 #[derive(Debug, Args)]
+#[command(after_long_help = SCENE_HELP)]
 pub struct RenderArgs {
     /// Output image; `.png` writes PNG, anything else JPEG at --jpeg-quality.
     #[arg(long)]
     pub out: PathBuf,
+    /// Render the codes of a JSON scene file instead of one code from the flags below
+    /// (format in the long help, `--help`); the effect flags still apply. The JSON printed
+    /// lists every code under "codes".
+    #[arg(long, value_name = "FILE.json", conflicts_with_all = SINGLE_CODE_FLAGS)]
+    pub scene: Option<PathBuf>,
+    /// Render a random scene drawn from this seed: 2-6 codes of 30-120 mm, 0.3-2 m away,
+    /// tilted up to 35° from the line of sight, never overlapping (quiet zones included),
+    /// seen by a camera with fx = fy in 950-1050 px and the principal point at the centre,
+    /// in a --width-px × --height-px frame. The same seed gives the same scene; --seed
+    /// still drives noise, clutter and lighting. The JSON printed lists every code under
+    /// "codes".
+    #[arg(
+        long,
+        value_name = "SEED",
+        conflicts_with = "scene",
+        conflicts_with_all = SINGLE_CODE_FLAGS
+    )]
+    pub random_scene: Option<u64>,
     /// The symbol's content (UTF-8 text).
     #[arg(long, default_value = "qrpose")]
     pub payload: String,
@@ -87,25 +129,130 @@ pub struct RenderArgs {
     pub pretty: bool,
 }
 
+/// The long help: the scene file's format.
+const SCENE_HELP: &str = r#"Scene file (--scene): every field but "codes" and each code's "payload", "size_mm" and
+"position_mm" may be left out; defaults are those of the flags.
+  {
+    "width_px": 1280, "height_px": 720,
+    "camera": {"fx_px": 1000, "fy_px": 1000, "cx_px": 639.5, "cy_px": 359.5},
+    "codes": [
+      {"payload": "LEFT", "ec_level": "M", "size_mm": 50,
+       "position_mm": [-120, 0, 500],
+       "rotation_euler_xyz_deg": {"alpha": 0, "beta": 20, "gamma": 10}},
+      {"payload": "RIGHT", "size_mm": 40, "position_mm": [120, 20, 450]}
+    ]
+  }
+position_mm is the code's centre in the camera frame (x right, y down, z forward), the
+rotation R = Rx(alpha)·Ry(beta)·Rz(gamma), as --x-mm … --gamma-deg. Codes are drawn in order,
+a later one over an earlier one; each code's ground truth is where it was placed, hidden or
+not, so keep codes apart (their quiet zones too) unless occlusion is what is wanted."#;
+
+/// The JSON scene file of `--scene`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default = "default_width_px")]
+    width_px: u32,
+    #[serde(default = "default_height_px")]
+    height_px: u32,
+    #[serde(default)]
+    camera: CameraSpec,
+    codes: Vec<CodeSpec>,
+}
+
+fn default_width_px() -> u32 {
+    1280
+}
+
+fn default_height_px() -> u32 {
+    720
+}
+
+/// The camera of a scene file (principal point: the image centre when left out).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraSpec {
+    fx_px: f64,
+    fy_px: f64,
+    #[serde(default)]
+    cx_px: Option<f64>,
+    #[serde(default)]
+    cy_px: Option<f64>,
+}
+
+impl Default for CameraSpec {
+    fn default() -> Self {
+        Self {
+            fx_px: 1000.0,
+            fy_px: 1000.0,
+            cx_px: None,
+            cy_px: None,
+        }
+    }
+}
+
+/// One code of a scene file, and of the `codes` printed.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CodeSpec {
+    payload: String,
+    #[serde(default = "default_ec_level")]
+    ec_level: String,
+    size_mm: f64,
+    position_mm: [f64; 3],
+    #[serde(default)]
+    rotation_euler_xyz_deg: EulerSpec,
+}
+
+fn default_ec_level() -> String {
+    "M".to_owned()
+}
+
+/// R = Rx(alpha)·Ry(beta)·Rz(gamma), degrees.
+#[derive(Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+struct EulerSpec {
+    #[serde(default)]
+    alpha: f64,
+    #[serde(default)]
+    beta: f64,
+    #[serde(default)]
+    gamma: f64,
+}
+
 fn problem(detail: impl Into<String>, field: &str) -> Problem {
     Problem::new(ErrorCode::InvalidType, detail).with_field(field)
 }
 
+fn parse_ec_level(text: &str, field: &str) -> Result<EcLevel, Problem> {
+    match text.to_ascii_uppercase().as_str() {
+        "L" => Ok(EcLevel::L),
+        "M" => Ok(EcLevel::M),
+        "Q" => Ok(EcLevel::Q),
+        "H" => Ok(EcLevel::H),
+        other => Err(problem(format!("unknown ec level {other}"), field)),
+    }
+}
+
+fn camera(spec: &CameraSpec, width_px: u32, height_px: u32) -> Result<Camera, Problem> {
+    let cx = spec.cx_px.unwrap_or(f64::from(width_px) / 2.0 - 0.5);
+    let cy = spec.cy_px.unwrap_or(f64::from(height_px) / 2.0 - 0.5);
+    Camera::from_pixels(spec.fx_px, spec.fy_px, cx, cy)
+        .map_err(|e| Problem::new(ErrorCode::InvalidCameraParameter, e.to_string()))
+}
+
 fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
-    let cx = args.cx_px.unwrap_or(f64::from(args.width_px) / 2.0 - 0.5);
-    let cy = args.cy_px.unwrap_or(f64::from(args.height_px) / 2.0 - 0.5);
-    let camera = Camera::from_pixels(args.fx_px, args.fy_px, cx, cy)
-        .map_err(|e| Problem::new(ErrorCode::InvalidCameraParameter, e.to_string()))?;
+    let spec = CameraSpec {
+        fx_px: args.fx_px,
+        fy_px: args.fy_px,
+        cx_px: args.cx_px,
+        cy_px: args.cy_px,
+    };
+    let camera = camera(&spec, args.width_px, args.height_px)?;
     let marker = Marker::try_new(args.marker_size_mm).map_err(|e| {
         Problem::new(ErrorCode::InvalidMarkerSize, e.to_string()).with_field("marker_size_mm")
     })?;
-    let ec_level = match args.ec_level.to_ascii_uppercase().as_str() {
-        "L" => EcLevel::L,
-        "M" => EcLevel::M,
-        "Q" => EcLevel::Q,
-        "H" => EcLevel::H,
-        other => return Err(problem(format!("unknown ec level {other}"), "ec_level")),
-    };
+    let ec_level = parse_ec_level(&args.ec_level, "ec_level")?;
     let r = EulerXyz::from_degrees(args.alpha_deg, args.beta_deg, args.gamma_deg).to_rotation();
     let centre = nalgebra::Vector3::new(args.x_mm, args.y_mm, args.z_mm);
     Ok(Scene {
@@ -117,6 +264,119 @@ fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
         height_px: args.height_px,
         pose: marker.pose_centred_at(r, centre),
     })
+}
+
+/// The scene of a scene file, with its codes as written.
+fn file_scene(file: SceneFile) -> Result<(MultiScene, Vec<CodeSpec>), Problem> {
+    let camera = camera(&file.camera, file.width_px, file.height_px)?;
+    let mut codes = Vec::with_capacity(file.codes.len());
+    for (i, c) in file.codes.iter().enumerate() {
+        let marker = Marker::try_new(c.size_mm).map_err(|e| {
+            Problem::new(ErrorCode::InvalidMarkerSize, e.to_string())
+                .with_field(format!("/codes/{i}/size_mm"))
+        })?;
+        let ec_level = parse_ec_level(&c.ec_level, &format!("/codes/{i}/ec_level"))?;
+        let e = &c.rotation_euler_xyz_deg;
+        let r = EulerXyz::from_degrees(e.alpha, e.beta, e.gamma).to_rotation();
+        codes.push(CodePlacement {
+            payload: c.payload.as_bytes().to_vec(),
+            ec_level,
+            marker,
+            pose: marker.pose_centred_at(r, nalgebra::Vector3::from(c.position_mm)),
+        });
+    }
+    let scene = MultiScene {
+        camera,
+        width_px: file.width_px,
+        height_px: file.height_px,
+        codes,
+    };
+    Ok((scene, file.codes))
+}
+
+/// A placed code as a scene file would write it (centre and Euler angles of its pose).
+fn spec_of(code: &CodePlacement) -> CodeSpec {
+    let centre = code.pose.transform(&code.marker.centre()).0;
+    let [alpha, beta, gamma] = EulerXyz::from_rotation(&code.pose.rotation()).to_degrees();
+    CodeSpec {
+        payload: String::from_utf8_lossy(&code.payload).into_owned(),
+        ec_level: format!("{:?}", code.ec_level),
+        size_mm: code.marker.size_mm(),
+        position_mm: [centre.x, centre.y, centre.z],
+        rotation_euler_xyz_deg: EulerSpec { alpha, beta, gamma },
+    }
+}
+
+/// Reads and parses a scene file; `Err(exit code)` once the failure is reported.
+fn read_scene_file(path: &Path) -> Result<(MultiScene, Vec<CodeSpec>), ExitCode> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        eprintln!("qrpose: cannot read {}: {e}", path.display());
+        ExitCode::FAILURE
+    })?;
+    let mut deserializer = serde_json::Deserializer::from_str(&text);
+    let file: SceneFile = serde_path_to_error::deserialize(&mut deserializer)
+        .map_err(|e| report_problem(&Problem::from_json_error(&e)))?;
+    file_scene(file).map_err(|p| report_problem(&p))
+}
+
+/// `render --scene` and `render --random-scene`: several codes, every one under `codes`.
+fn run_multi(args: &RenderArgs, effects: &Effects) -> ExitCode {
+    let (scene, specs, source) = if let Some(path) = &args.scene {
+        match read_scene_file(path) {
+            Ok((scene, specs)) => (scene, specs, json!({"file": path})),
+            Err(code) => return code,
+        }
+    } else {
+        let seed = args.random_scene.unwrap_or_default();
+        let ranges = SceneRanges {
+            width_px: args.width_px,
+            height_px: args.height_px,
+            quiet_zone_modules: effects.quiet_zone_modules,
+            ..SceneRanges::default()
+        };
+        match random_scene(seed, &ranges) {
+            Ok(scene) => {
+                let specs = scene.codes.iter().map(spec_of).collect();
+                (scene, specs, json!({"random_seed": seed}))
+            }
+            Err(e) => {
+                return report_problem(&Problem::new(ErrorCode::InvalidType, e.to_string()));
+            }
+        }
+    };
+    let rendered = match render_scene(&scene, effects) {
+        Ok(r) => r,
+        Err(e) => return report_problem(&Problem::new(ErrorCode::InvalidType, e.to_string())),
+    };
+    if let Err(e) = std::fs::write(&args.out, &rendered.encoded) {
+        eprintln!("qrpose: cannot write {}: {e}", args.out.display());
+        return ExitCode::FAILURE;
+    }
+    let codes: Vec<_> = scene
+        .codes
+        .iter()
+        .zip(specs)
+        .zip(&rendered.truth)
+        .map(|((code, spec), truth)| {
+            json!({
+                "payload": spec.payload,
+                "ec_level": code.ec_level,
+                "size_mm": spec.size_mm,
+                "position_mm": spec.position_mm,
+                "rotation_euler_xyz_deg": spec.rotation_euler_xyz_deg,
+                "truth": truth,
+            })
+        })
+        .collect();
+    let c = &scene.camera;
+    let out = json!({
+        "image": {"path": args.out, "width_px": scene.width_px, "height_px": scene.height_px},
+        "scene": source,
+        "camera": {"fx_px": c.fx(), "fy_px": c.fy(), "cx_px": c.cx(), "cy_px": c.cy()},
+        "effects": effects,
+        "codes": codes,
+    });
+    print_json(&out, args.pretty)
 }
 
 /// Runs `render`.
@@ -139,6 +399,9 @@ pub fn run(args: &RenderArgs) -> ExitCode {
         seed: args.seed,
         ..Effects::default()
     };
+    if args.scene.is_some() || args.random_scene.is_some() {
+        return run_multi(args, &effects);
+    }
     let scene = match scene(args) {
         Ok(s) => s,
         Err(p) => return report_problem(&p),

@@ -1,5 +1,8 @@
-//! Synthetic photos of a QR code at a known pose, with their ground truth: the test and
-//! benchmark source of every image-path number in this repository.
+//! Synthetic photos of QR codes at known poses, with their ground truth: the test and
+//! benchmark source of every image-path number in this repository. One code per frame
+//! ([`Scene`], [`render`]) or several ([`MultiScene`], [`render_scene`]; [`random_scene`]
+//! places 2-6 non-overlapping codes at random); [`render`] is [`render_scene`] with one code,
+//! so both go through the same rasteriser and give the same pixels.
 //!
 //! Geometry (docs/conventions.md): pixel (u, v) covers [u − 0.5, u + 0.5] × [v − 0.5, v + 0.5];
 //! each pixel is the mean of `supersample`² rays through sub-pixel points
@@ -15,25 +18,39 @@
 //! σ px), sensor noise (Gaussian, grey levels), 8-bit quantisation, then JPEG at the given
 //! quality (or PNG). Everything random comes from one seed.
 //!
-//! Layout: the scene, effect and result types here; the symbol's modules and the ground
-//! truth in module `symbol`; the rasteriser (background, lighting, supersampled symbol,
-//! lens blur by [`qrpose_detect::filters::gaussian_blur_plane`], noise, quantisation) in
-//! module `raster`; the file encoding in module `encoding`. Every public item is
-//! re-exported here.
+//! Several codes: each is drawn in the order given, a later one on top of an earlier one
+//! (its quiet zone included). The ground truth of every code is where it was placed, whether
+//! or not another code hides part of it: occlusion is the caller's business, and
+//! [`codes_overlap`] / [`MultiScene::overlapping_pairs`] tell whether two codes' image
+//! outlines (quiet zones included) meet.
+//!
+//! Layout: the single-code scene, effect and result types here; the multi-code scene, its
+//! ground truth and the overlap helpers in module `scene`; the random scene generator in
+//! module `random`; the symbol's modules and the ground truth in module `symbol`; the
+//! rasteriser (background, lighting, supersampled symbols, lens blur by
+//! [`qrpose_detect::filters::gaussian_blur_plane`], noise, quantisation) in module `raster`;
+//! the file encoding in module `encoding`. Every public item is re-exported here.
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
 #![allow(clippy::cast_possible_truncation)]
 
 mod encoding;
+mod random;
 mod raster;
+mod scene;
 mod symbol;
 #[cfg(test)]
 mod tests;
 
 pub use encoding::{Encoding, encode};
-pub use raster::render;
-pub use symbol::{ground_truth, marker_point, symbol_modules};
+pub use random::{SceneRanges, random_scene};
+pub use raster::{render, render_scene};
+pub use scene::{
+    CodePlacement, MultiScene, RenderedScene, code_outline_px, codes_overlap, quad_separation_px,
+    quads_overlap,
+};
+pub use symbol::{code_ground_truth, ground_truth, marker_point, symbol_modules};
 
 use qrpose_core::geometry::{camera::Camera, frames::MarkerToCamera, marker::Marker};
 use qrpose_detect::decode::GrayImage;
@@ -155,6 +172,29 @@ pub enum RenderError {
     Image {
         /// What the encoder said.
         reason: String,
+    },
+    /// One code of a [`MultiScene`] cannot be rendered ([`render`] reports the inner error
+    /// of its one code instead).
+    #[error("code {index}: {error}")]
+    Code {
+        /// The code's position in [`MultiScene::codes`], 0-based.
+        index: usize,
+        /// Why.
+        error: Box<RenderError>,
+    },
+    /// A [`SceneRanges`] field is out of range (empty, not finite, or outside its limits).
+    #[error("scene range {name} = {value} is out of range")]
+    Range {
+        /// The field.
+        name: &'static str,
+        /// The value given (of a `[min, max]` field, its min).
+        value: f64,
+    },
+    /// [`random_scene`] could not fit the codes it drew into the image without overlaps.
+    #[error("cannot place {codes} codes without overlap in the image")]
+    Placement {
+        /// How many codes were drawn.
+        codes: usize,
     },
 }
 

@@ -1,16 +1,21 @@
-//! The rasteriser: a scene and its effects to pixels ([`render`]). Background clutter and
-//! uneven lighting, the symbol supersampled through the camera's distortion, then the lens
-//! blur ([`qrpose_detect::filters::gaussian_blur_plane`], on the `f64` plane), sensor
-//! noise and 8-bit quantisation; the file is written by [`super::encode`].
+//! The rasteriser: a scene and its effects to pixels ([`render_scene`]; [`render`] is the
+//! same with one code). Background clutter and uneven lighting, each code supersampled
+//! through the camera's distortion (later codes over earlier ones), then the lens blur
+//! ([`qrpose_detect::filters::gaussian_blur_plane`], on the `f64` plane), sensor noise and
+//! 8-bit quantisation; the file is written by [`super::encode`].
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
 #![allow(clippy::cast_possible_truncation)]
 
-use super::symbol::{ground_truth, marker_point, module_coords, symbol_modules};
-use super::{Effects, Encoding, MAX_SIDE_PX, RenderError, Rendered, Scene, encode};
+use super::scene::at_code;
+use super::symbol::{code_ground_truth, marker_point, module_coords, symbol_modules};
+use super::{
+    CodePlacement, Effects, Encoding, GroundTruth, MAX_SIDE_PX, MultiScene, RenderError, Rendered,
+    RenderedScene, Scene, encode,
+};
 use nalgebra::{Point3, Vector3};
-use qrpose_core::geometry::frames::{CameraPoint, PixelPoint};
+use qrpose_core::geometry::frames::{CameraPoint, CameraToMarker, PixelPoint};
 use qrpose_detect::decode::GrayImage;
 use qrpose_detect::filters::gaussian_blur_plane;
 use rand::{Rng, SeedableRng, rngs::StdRng};
@@ -62,11 +67,153 @@ fn check_effects(e: &Effects) -> Result<(), RenderError> {
     Ok(())
 }
 
-/// Renders a scene.
+/// A code ready to be drawn: its modules, its plane in the camera frame, and the image box
+/// (px, quiet zone included) outside which it is not looked for.
+struct Prepared {
+    n: usize,
+    modules: Vec<bool>,
+    normal: Vector3<f64>,
+    t: Vector3<f64>,
+    inv: CameraToMarker,
+    l: f64,
+    umin: f64,
+    umax: f64,
+    vmin: f64,
+    vmax: f64,
+}
+
+/// Pixels within this distance of a code's box get supersampled.
+const MARGIN_PX: f64 = 2.0;
+
+impl Prepared {
+    /// The ground truth of a code and the code ready to be drawn.
+    fn new(
+        scene: &MultiScene,
+        code: &CodePlacement,
+        qz: f64,
+    ) -> Result<(GroundTruth, Self), RenderError> {
+        let (w, h) = (scene.width_px, scene.height_px);
+        let truth = code_ground_truth(&scene.camera, code)?;
+        let inside = |p: &[f64; 2]| {
+            p[0] >= -0.5 && p[1] >= -0.5 && p[0] <= f64::from(w) - 0.5 && p[1] <= f64::from(h) - 0.5
+        };
+        if !truth.corners_px.iter().all(inside) {
+            return Err(RenderError::OutOfView);
+        }
+        let (n, modules) = symbol_modules(&code.payload, code.ec_level)?;
+        let nf = n as f64;
+        // Pixels whose footprint may touch the symbol and its quiet zone get supersampled.
+        let outline: Vec<[f64; 2]> = [
+            (-qz, -qz),
+            (nf + qz, -qz),
+            (nf + qz, nf + qz),
+            (-qz, nf + qz),
+        ]
+        .iter()
+        .filter_map(|&(u, v)| {
+            scene
+                .camera
+                .project(&code.pose.transform(&marker_point(u, v, &code.marker, n)))
+                .map(|p| [p.u(), p.v()])
+        })
+        .collect();
+        let (umin, umax, vmin, vmax) = if outline.len() == 4 {
+            outline.iter().fold(
+                (
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                ),
+                |(a, b, c, d), p| (a.min(p[0]), b.max(p[0]), c.min(p[1]), d.max(p[1])),
+            )
+        } else {
+            (0.0, f64::from(w), 0.0, f64::from(h))
+        };
+        let prepared = Self {
+            n,
+            modules,
+            normal: code.pose.rotation() * Vector3::z(),
+            t: code.pose.translation_mm(),
+            inv: code.pose.inverse(),
+            l: code.marker.size_mm(),
+            umin,
+            umax,
+            vmin,
+            vmax,
+        };
+        Ok((truth, prepared))
+    }
+
+    /// Whether pixel (u, v) may see this code.
+    fn near(&self, u: f64, v: f64) -> bool {
+        u >= self.umin - MARGIN_PX
+            && u <= self.umax + MARGIN_PX
+            && v >= self.vmin - MARGIN_PX
+            && v <= self.vmax + MARGIN_PX
+    }
+
+    /// The reflectance the ray (x, y, 1) meets on this code, `None` off the code and its
+    /// quiet zone.
+    fn reflectance(&self, dir: &Vector3<f64>, effects: &Effects) -> Option<f64> {
+        let denom = self.normal.dot(dir);
+        if denom.abs() < 1e-12 {
+            return None;
+        }
+        let lambda = self.normal.dot(&self.t) / denom;
+        if lambda <= 0.0 {
+            return None;
+        }
+        let p_marker = self.inv.transform(&CameraPoint(Point3::from(dir * lambda)));
+        let nf = self.n as f64;
+        let qz = effects.quiet_zone_modules;
+        let (mu, mv) = module_coords(p_marker.0.x, p_marker.0.y, self.l, nf);
+        if mu < -qz || mv < -qz || mu >= nf + qz || mv >= nf + qz {
+            return None;
+        }
+        if mu < 0.0 || mv < 0.0 || mu >= nf || mv >= nf {
+            return Some(effects.light_level);
+        }
+        let (i, j) = (mu.floor() as usize, mv.floor() as usize);
+        Some(if self.modules[j * self.n + i] {
+            effects.dark_level
+        } else {
+            effects.light_level
+        })
+    }
+}
+
+/// Renders a single-code scene: [`render_scene`] with its one code.
 ///
 /// # Errors
-/// Every [`RenderError`] variant, as its doc says.
+/// Every [`RenderError`] variant, as its doc says, except [`RenderError::Code`] (the error
+/// of the one code is returned as it is) and the random scene's.
 pub fn render(scene: &Scene, effects: &Effects) -> Result<Rendered, RenderError> {
+    let RenderedScene {
+        image,
+        encoded,
+        truth,
+    } = render_scene(&MultiScene::from(scene), effects).map_err(|e| match e {
+        RenderError::Code { error, .. } => *error,
+        other => other,
+    })?;
+    // One code in, one ground truth out.
+    let truth = truth.into_iter().next().ok_or(RenderError::OutOfView)?;
+    Ok(Rendered {
+        image,
+        encoded,
+        truth,
+    })
+}
+
+/// Renders a scene of several codes, drawn in order (a later code, quiet zone included,
+/// over an earlier one). Each code's ground truth is where it was placed, hidden or not.
+///
+/// # Errors
+/// [`RenderError::Effect`], [`RenderError::ImageSize`], [`RenderError::Image`], and
+/// [`RenderError::Code`] around [`RenderError::Encode`] or [`RenderError::OutOfView`] (a
+/// corner of that code behind the camera or outside the image).
+pub fn render_scene(scene: &MultiScene, effects: &Effects) -> Result<RenderedScene, RenderError> {
     check_effects(effects)?;
     let (w, h) = (scene.width_px, scene.height_px);
     if w == 0 || h == 0 || w > MAX_SIDE_PX || h > MAX_SIDE_PX {
@@ -75,14 +222,13 @@ pub fn render(scene: &Scene, effects: &Effects) -> Result<Rendered, RenderError>
             height_px: h,
         });
     }
-    let truth = ground_truth(scene)?;
-    let inside = |p: &[f64; 2]| {
-        p[0] >= -0.5 && p[1] >= -0.5 && p[0] <= f64::from(w) - 0.5 && p[1] <= f64::from(h) - 0.5
-    };
-    if !truth.corners_px.iter().all(inside) {
-        return Err(RenderError::OutOfView);
+    let mut truth = Vec::with_capacity(scene.codes.len());
+    let mut codes = Vec::with_capacity(scene.codes.len());
+    for (i, code) in scene.codes.iter().enumerate() {
+        let (t, p) = Prepared::new(scene, code, effects.quiet_zone_modules).map_err(at_code(i))?;
+        truth.push(t);
+        codes.push(p);
     }
-    let (n, modules) = symbol_modules(&scene.payload, scene.ec_level)?;
     let mut rng = StdRng::seed_from_u64(effects.seed);
     let (wu, hu) = (w as usize, h as usize);
     let shapes: Vec<Shape> = (0..effects.clutter)
@@ -113,91 +259,33 @@ pub fn render(scene: &Scene, effects: &Effects) -> Result<Rendered, RenderError>
         let r2 = ((u - cx_img).powi(2) + (v - cy_img).powi(2)) / (diag * diag / 4.0);
         (1.0 - effects.lighting * along) * (1.0 - 0.3 * effects.lighting * r2)
     };
-    // The marker plane in the camera frame: normal and P2.
-    let r = scene.pose.rotation();
-    let normal = r * Vector3::z();
-    let t = scene.pose.translation_mm();
-    let inv = scene.pose.inverse();
-    let l = scene.marker.size_mm();
-    let nf = n as f64;
-    let qz = effects.quiet_zone_modules;
-    let reflectance = |u: f64, v: f64| -> Option<f64> {
+    // The topmost code a sub-pixel ray meets, among those near its pixel.
+    let reflectance = |near: &[&Prepared], u: f64, v: f64| -> Option<f64> {
         let ray = scene.camera.normalize(&PixelPoint::new(u, v)).ok()?;
         let dir = Vector3::new(ray.x(), ray.y(), 1.0);
-        let denom = normal.dot(&dir);
-        if denom.abs() < 1e-12 {
-            return None;
-        }
-        let lambda = normal.dot(&t) / denom;
-        if lambda <= 0.0 {
-            return None;
-        }
-        let p_marker = inv.transform(&CameraPoint(Point3::from(dir * lambda)));
-        let (mu, mv) = module_coords(p_marker.0.x, p_marker.0.y, l, nf);
-        if mu < -qz || mv < -qz || mu >= nf + qz || mv >= nf + qz {
-            return None;
-        }
-        if mu < 0.0 || mv < 0.0 || mu >= nf || mv >= nf {
-            return Some(effects.light_level);
-        }
-        let (i, j) = (mu.floor() as usize, mv.floor() as usize);
-        Some(if modules[j * n + i] {
-            effects.dark_level
-        } else {
-            effects.light_level
-        })
-    };
-    // Pixels whose footprint may touch the symbol and its quiet zone get supersampled.
-    let margin_px = 2.0;
-    let outline: Vec<[f64; 2]> = [
-        (-qz, -qz),
-        (nf + qz, -qz),
-        (nf + qz, nf + qz),
-        (-qz, nf + qz),
-    ]
-    .iter()
-    .filter_map(|&(u, v)| {
-        scene
-            .camera
-            .project(&scene.pose.transform(&marker_point(u, v, &scene.marker, n)))
-            .map(|p| [p.u(), p.v()])
-    })
-    .collect();
-    let (umin, umax, vmin, vmax) = if outline.len() == 4 {
-        outline.iter().fold(
-            (
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-            ),
-            |(a, b, c, d), p| (a.min(p[0]), b.max(p[0]), c.min(p[1]), d.max(p[1])),
-        )
-    } else {
-        (0.0, f64::from(w), 0.0, f64::from(h))
+        near.iter().rev().find_map(|c| c.reflectance(&dir, effects))
     };
     let s = effects.supersample;
     let sf = f64::from(s);
     let mut plane = vec![0.0f64; wu * hu];
+    let mut near: Vec<&Prepared> = Vec::with_capacity(codes.len());
     for y in 0..hu {
         for x in 0..wu {
             let (u, v) = (x as f64, y as f64);
-            let near = u >= umin - margin_px
-                && u <= umax + margin_px
-                && v >= vmin - margin_px
-                && v <= vmax + margin_px;
-            let value = if near {
+            near.clear();
+            near.extend(codes.iter().filter(|c| c.near(u, v)));
+            let value = if near.is_empty() {
+                background(u, v)
+            } else {
                 let mut sum = 0.0;
                 for a in 0..s {
                     for b in 0..s {
                         let su = u + (f64::from(a) + 0.5) / sf - 0.5;
                         let sv = v + (f64::from(b) + 0.5) / sf - 0.5;
-                        sum += reflectance(su, sv).unwrap_or_else(|| background(su, sv));
+                        sum += reflectance(&near, su, sv).unwrap_or_else(|| background(su, sv));
                     }
                 }
                 sum / (sf * sf)
-            } else {
-                background(u, v)
             };
             plane[y * wu + x] = value * lighting(u, v);
         }
@@ -229,7 +317,7 @@ pub fn render(scene: &Scene, effects: &Effects) -> Result<Rendered, RenderError>
         height_px: h,
     })?;
     let encoded = encode(&image, effects.encoding)?;
-    Ok(Rendered {
+    Ok(RenderedScene {
         image,
         encoded,
         truth,

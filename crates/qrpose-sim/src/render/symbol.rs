@@ -1,9 +1,10 @@
 //! The symbol and where it lies: the module matrix of a payload ([`symbol_modules`]),
 //! module coordinates on the marker plane ([`marker_point`]), and the ground truth of a
-//! scene (corners and finder corners projected by the camera, [`ground_truth`]).
+//! code (corners and finder corners projected by the camera, [`code_ground_truth`]; of a
+//! single-code scene, [`ground_truth`]).
 
-use super::{EcLevel, GroundTruth, RenderError, Scene};
-use qrpose_core::geometry::{frames::MarkerPoint, marker::Marker};
+use super::{CodePlacement, EcLevel, GroundTruth, RenderError, Scene};
+use qrpose_core::geometry::{camera::Camera, frames::MarkerPoint, marker::Marker};
 use qrpose_detect::finders::{finder_model_points, marker_point_of_module};
 use qrpose_detect::homography::ModulePoint;
 
@@ -51,11 +52,23 @@ pub fn marker_point(u: f64, v: f64, marker: &Marker, n: usize) -> MarkerPoint {
 /// [`RenderError::Encode`], or [`RenderError::OutOfView`] when a corner is behind the
 /// camera.
 pub fn ground_truth(scene: &Scene) -> Result<GroundTruth, RenderError> {
-    let (n, _) = symbol_modules(&scene.payload, scene.ec_level)?;
+    code_ground_truth(&scene.camera, &scene.code())
+}
+
+/// The ground truth of one code seen by a camera: its corners and finder corners projected,
+/// and its pose. Where the code was placed, whatever else the frame holds.
+///
+/// # Errors
+/// [`RenderError::Encode`], or [`RenderError::OutOfView`] when a corner is behind the
+/// camera.
+pub fn code_ground_truth(
+    camera: &Camera,
+    code: &CodePlacement,
+) -> Result<GroundTruth, RenderError> {
+    let (n, _) = symbol_modules(&code.payload, code.ec_level)?;
     let project = |u: f64, v: f64| -> Result<[f64; 2], RenderError> {
-        let p = scene
-            .camera
-            .project(&scene.pose.transform(&marker_point(u, v, &scene.marker, n)))
+        let p = camera
+            .project(&code.pose.transform(&marker_point(u, v, &code.marker, n)))
             .ok_or(RenderError::OutOfView)?;
         Ok([p.u(), p.v()])
     };
@@ -71,10 +84,10 @@ pub fn ground_truth(scene: &Scene) -> Result<GroundTruth, RenderError> {
     for (k, p) in finder_points.iter().enumerate() {
         finder_corners_px[k] = project(p.u, p.v)?;
     }
-    let r = scene.pose.rotation();
+    let r = code.pose.rotation();
     let m = r.matrix();
-    let t = scene.pose.translation_mm();
-    let centre = scene.pose.transform(&scene.marker.centre()).0;
+    let t = code.pose.translation_mm();
+    let centre = code.pose.transform(&code.marker.centre()).0;
     Ok(GroundTruth {
         module_count: n,
         corners_px,

@@ -1,5 +1,6 @@
 //! Tests of the renderer through its public functions: ground truth against the pose,
-//! one edge's coverage against the geometry, and a symbol out of view.
+//! one edge's coverage against the geometry, a symbol out of view, and a single-code
+//! render pinned to its pixels (the same through [`render`] and [`render_scene`]).
 
 use super::*;
 use nalgebra::Vector3;
@@ -102,4 +103,80 @@ fn refuses_a_symbol_outside_the_image() {
         Vector3::new(400.0, 0.0, 300.0),
     );
     assert_eq!(render(&s, &Effects::default()), Err(RenderError::OutOfView));
+}
+
+/// FNV-1a of a byte string (a stable fingerprint of a render's pixels).
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// FNV-1a of [`pinned_scene`]'s pixels with [`pinned_effects`], from the single-code renderer
+/// as it was before the multi-code one replaced it (the new one gives the same bytes).
+const PINNED_PIXELS_FNV1A: u64 = 8_570_194_075_281_222_094;
+
+/// A small single-code scene, tilted and off-centre.
+fn pinned_scene() -> Scene {
+    let marker = Marker::try_new(40.0).expect("valid size");
+    Scene {
+        width_px: 160,
+        height_px: 120,
+        camera: Camera::from_pixels(300.0, 300.0, 79.5, 59.5).expect("valid camera"),
+        pose: marker.pose_centred_at(
+            EulerXyz::from_degrees(-15.0, 10.0, 25.0).to_rotation(),
+            Vector3::new(5.0, -3.0, 250.0),
+        ),
+        marker,
+        ..scene(0.0, 0.0)
+    }
+}
+
+/// Clutter and uneven lighting, no blur or noise: only the renderer, the symbol encoder and
+/// the seeded clutter decide the pixels.
+fn pinned_effects() -> Effects {
+    Effects {
+        supersample: 3,
+        lighting: 0.4,
+        clutter: 12,
+        seed: 11,
+        ..Effects::default()
+    }
+}
+
+#[test]
+fn a_single_code_render_keeps_its_pixels_and_its_truth() {
+    let s = pinned_scene();
+    let r = render(&s, &pinned_effects()).expect("renders");
+    assert_eq!(fnv1a(r.image.pixels()), PINNED_PIXELS_FNV1A);
+    let truth = ground_truth(&s).expect("in view");
+    assert_eq!(r.truth, truth);
+    let qr_of_paper = [2, 1, 0, 3];
+    for (paper, corner) in s.marker.object_points().iter().enumerate() {
+        let p = s
+            .camera
+            .project(&s.pose.transform(corner))
+            .expect("in front");
+        let q = r.truth.corners_px[qr_of_paper[paper]];
+        assert!((p.u() - q[0]).abs() < 1e-9 && (p.v() - q[1]).abs() < 1e-9);
+    }
+    let one = render_scene(&MultiScene::from(&s), &pinned_effects()).expect("renders");
+    assert_eq!(one.image, r.image, "render is render_scene with one code");
+    assert_eq!(one.encoded, r.encoded);
+    assert_eq!(one.truth, vec![r.truth]);
+}
+
+#[test]
+fn render_reports_the_error_of_its_one_code_unwrapped() {
+    let mut s = scene(0.0, 0.0);
+    s.payload = vec![b'x'; 4000];
+    assert!(matches!(
+        render(&s, &Effects::default()),
+        Err(RenderError::Encode { .. })
+    ));
+    let multi = MultiScene::from(&s);
+    assert!(matches!(
+        render_scene(&multi, &Effects::default()),
+        Err(RenderError::Code { index: 0, error }) if matches!(*error, RenderError::Encode { .. })
+    ));
 }
