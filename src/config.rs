@@ -43,6 +43,31 @@ pub const DEFAULT_MAX_IMAGE_PIXELS: u64 = 50_000_000;
 /// for a decoded JPEG, up to 8 while a 16-bit RGBA PNG is decoded, plus the detector's copies.
 pub const MAX_MAX_IMAGE_PIXELS: u64 = 1_000_000_000;
 
+// ---- Connection limits (issue 16): header-read timeout, idle keep-alive timeout, open
+// connections. Enforced by `http::conn`; see docs/service.md, "Limits".
+/// Default time a connection gets to deliver a complete request head, ms: counted from the
+/// accept for its first request, and from the first byte of each later one.
+pub const DEFAULT_HEADER_READ_TIMEOUT_MS: u64 = 10_000;
+/// Largest accepted header-read timeout, ms (10 minutes).
+pub const MAX_HEADER_READ_TIMEOUT_MS: u64 = 600_000;
+/// Default time a kept-alive connection may stay idle (no request in progress, no byte of
+/// a new one) after its last response, ms. Longer than the usual 60 s idle timeout of load
+/// balancers, so that the balancer, not the service, closes a pooled connection.
+pub const DEFAULT_IDLE_TIMEOUT_MS: u64 = 75_000;
+/// Largest accepted idle timeout, ms (1 hour).
+pub const MAX_IDLE_TIMEOUT_MS: u64 = 3_600_000;
+/// Default limit on open client connections. Keep it below the open-file limit
+/// (`ulimit -n`) less about 64 descriptors for the process itself.
+pub const DEFAULT_MAX_CONNECTIONS: usize = 1000;
+/// Largest accepted connection limit.
+pub const MAX_MAX_CONNECTIONS: usize = 1_000_000;
+// ---- end of connection limits
+
+/// Default cap of a request's detection deadline, ms (half the default request timeout).
+pub const DEFAULT_MAX_DETECT_MS: u64 = 5_000;
+/// Largest accepted cap of the detection deadline, ms (10 minutes).
+pub const MAX_MAX_DETECT_MS: u64 = 600_000;
+
 /// Log line format.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum)]
 pub enum LogFormat {
@@ -85,6 +110,26 @@ pub struct ServeArgs {
     /// larger ones get 413 `image_too_large`.
     #[arg(long, env = "QRPOSE_MAX_IMAGE_PIXELS", default_value_t = DEFAULT_MAX_IMAGE_PIXELS)]
     pub max_image_pixels: u64,
+    /// Largest detection deadline, ms: a request's `max_detect_ms` above it is lowered to
+    /// it, and so is the effort's default deadline.
+    #[arg(long, env = "QRPOSE_MAX_DETECT_MS", default_value_t = DEFAULT_MAX_DETECT_MS)]
+    pub max_detect_ms: u64,
+
+    // ---- Connection limits (issue 16)
+    /// Time a connection gets to send a complete request head, ms: from the accept for its
+    /// first request, from the first byte for later ones; then it is closed.
+    #[arg(long, env = "QRPOSE_HEADER_READ_TIMEOUT_MS", default_value_t = DEFAULT_HEADER_READ_TIMEOUT_MS)]
+    pub header_read_timeout_ms: u64,
+    /// Time a kept-alive connection may stay idle after its last response, ms; then it is
+    /// closed.
+    #[arg(long, env = "QRPOSE_IDLE_TIMEOUT_MS", default_value_t = DEFAULT_IDLE_TIMEOUT_MS)]
+    pub idle_timeout_ms: u64,
+    /// Open client connections at most. At the limit a new connection closes the
+    /// longest-idle one (idle, or still sending its head); when every connection has a
+    /// request in progress, new ones wait in the listen backlog.
+    #[arg(long, env = "QRPOSE_MAX_CONNECTIONS", default_value_t = DEFAULT_MAX_CONNECTIONS)]
+    pub max_connections: usize,
+    // ---- end of connection limits
 }
 
 impl Default for ServeArgs {
@@ -99,6 +144,11 @@ impl Default for ServeArgs {
             log_format: LogFormat::Text,
             shutdown_grace_ms: DEFAULT_SHUTDOWN_GRACE_MS,
             max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
+            max_detect_ms: DEFAULT_MAX_DETECT_MS,
+            // Connection limits (issue 16).
+            header_read_timeout_ms: DEFAULT_HEADER_READ_TIMEOUT_MS,
+            idle_timeout_ms: DEFAULT_IDLE_TIMEOUT_MS,
+            max_connections: DEFAULT_MAX_CONNECTIONS,
         }
     }
 }
@@ -139,6 +189,17 @@ pub struct Settings {
     /// Largest declared width × height of an uploaded image, pixels. The largest encoded
     /// image is the body limit.
     pub max_image_pixels: u64,
+    /// Largest detection deadline.
+    pub max_detect: Duration,
+
+    // ---- Connection limits (issue 16)
+    /// Time a connection gets to send a complete request head.
+    pub header_read_timeout: Duration,
+    /// Time a kept-alive connection may stay idle after its last response.
+    pub idle_timeout: Duration,
+    /// Open client connections at most.
+    pub max_connections: NonZeroUsize,
+    // ---- end of connection limits
 }
 
 impl Default for Settings {
@@ -154,6 +215,12 @@ impl Default for Settings {
             log_format: LogFormat::Text,
             shutdown_grace: Duration::from_millis(DEFAULT_SHUTDOWN_GRACE_MS),
             max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
+            max_detect: Duration::from_millis(DEFAULT_MAX_DETECT_MS),
+            // Connection limits (issue 16).
+            header_read_timeout: Duration::from_millis(DEFAULT_HEADER_READ_TIMEOUT_MS),
+            idle_timeout: Duration::from_millis(DEFAULT_IDLE_TIMEOUT_MS),
+            max_connections: NonZeroUsize::new(DEFAULT_MAX_CONNECTIONS)
+                .unwrap_or(NonZeroUsize::MIN),
         }
     }
 }
@@ -232,6 +299,32 @@ impl TryFrom<ServeArgs> for Settings {
                 1,
                 MAX_MAX_IMAGE_PIXELS,
             )?,
+            max_detect: Duration::from_millis(in_range(
+                "max-detect-ms",
+                args.max_detect_ms,
+                1,
+                MAX_MAX_DETECT_MS,
+            )?),
+            // Connection limits (issue 16).
+            header_read_timeout: Duration::from_millis(in_range(
+                "header-read-timeout-ms",
+                args.header_read_timeout_ms,
+                1,
+                MAX_HEADER_READ_TIMEOUT_MS,
+            )?),
+            idle_timeout: Duration::from_millis(in_range(
+                "idle-timeout-ms",
+                args.idle_timeout_ms,
+                1,
+                MAX_IDLE_TIMEOUT_MS,
+            )?),
+            max_connections: NonZeroUsize::new(in_range(
+                "max-connections",
+                args.max_connections,
+                1,
+                MAX_MAX_CONNECTIONS,
+            )?)
+            .unwrap_or(NonZeroUsize::MIN),
         })
     }
 }
@@ -282,6 +375,12 @@ mod tests {
             "0",
             "--max-image-pixels",
             "1000000",
+            "--header-read-timeout-ms",
+            "1500",
+            "--idle-timeout-ms",
+            "2500",
+            "--max-connections",
+            "7",
         ])
         .expect("valid flags");
         assert_eq!(s.addr, SocketAddr::from(([0, 0, 0, 0], 9000)));
@@ -293,11 +392,14 @@ mod tests {
         assert_eq!(s.log_format, LogFormat::Json);
         assert_eq!(s.shutdown_grace, Duration::ZERO);
         assert_eq!(s.max_image_pixels, 1_000_000);
+        assert_eq!(s.header_read_timeout, Duration::from_millis(1500));
+        assert_eq!(s.idle_timeout, Duration::from_millis(2500));
+        assert_eq!(s.max_connections.get(), 7);
     }
 
     #[test]
     fn rejects_values_outside_their_range_naming_the_flag() {
-        let cases: [(&[&str], &str); 9] = [
+        let cases: [(&[&str], &str); 14] = [
             (&["--body-limit-bytes", "10"], "body-limit-bytes"),
             (&["--request-timeout-ms", "0"], "request-timeout-ms"),
             (&["--worker-threads", "0"], "worker-threads"),
@@ -310,6 +412,14 @@ mod tests {
             (&["--shutdown-grace-ms", "700000"], "shutdown-grace-ms"),
             (&["--max-image-pixels", "0"], "max-image-pixels"),
             (&["--max-image-pixels", "2000000000"], "max-image-pixels"),
+            (&["--header-read-timeout-ms", "0"], "header-read-timeout-ms"),
+            (
+                &["--header-read-timeout-ms", "600001"],
+                "header-read-timeout-ms",
+            ),
+            (&["--idle-timeout-ms", "0"], "idle-timeout-ms"),
+            (&["--max-connections", "0"], "max-connections"),
+            (&["--max-connections", "1000001"], "max-connections"),
         ];
         for (flags, flag) in cases {
             let err = settings_from(flags).expect_err(flag);

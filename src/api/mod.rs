@@ -6,6 +6,7 @@
 //! module.
 
 pub mod camera;
+pub mod finite;
 pub mod image;
 pub mod problem;
 pub mod refusal;
@@ -22,18 +23,73 @@ use std::time::Instant;
 /// Validates a corners request and estimates the pose.
 ///
 /// # Errors
-/// A [`Problem`] (4xx) for anything wrong with the request. Non-convergence is not an
-/// error: the response says `converged: false`.
+/// A [`Problem`] (4xx) for anything wrong with the request, including 422
+/// `numerically_degenerate` when a number of the result is not finite (inputs at magnitudes
+/// such as 1e150 px). Non-convergence is not an error: the response says `converged: false`.
 pub fn estimate_corners(request: &CornersRequest) -> Result<PoseResponse, Problem> {
     let started = Instant::now();
     let valid = request.validate()?;
+    check_arithmetic_range(&valid)?;
     let s = &valid.setup;
     let estimate = estimate_pose(&valid.quad, &s.camera, &s.marker, &s.solver)
         .map_err(|e| problem_from_estimate_error(e, valid.corners_pointer))?;
     let elapsed_us = started.elapsed().as_secs_f64() * 1e6;
-    Ok(PoseResponse::new(
-        &estimate, &s.camera, &s.marker, elapsed_us,
-    ))
+    PoseResponse::try_new(
+        &estimate,
+        &s.camera,
+        &s.marker,
+        elapsed_us,
+        valid.corners_pointer,
+    )
+}
+
+/// Largest magnitude (and inverse of the smallest) of a ray coordinate, of the corners'
+/// spread in ray space and of the marker size that the solvers are given. Their least
+/// squares multiply up to four such numbers (and square the result), so each must keep its
+/// fourth power well inside double precision (about 1e±308): 1e±75 does. Physical inputs
+/// are nowhere near: a ray coordinate of 1e3 is 89.94° off axis.
+pub const MAX_SOLVER_MAGNITUDE: f64 = 1e75;
+
+/// Refuses a valid request whose scale the solvers' arithmetic cannot hold (corners at
+/// 1e200 px, a focal length of 1e-200 px), before solving: the solvers would overflow to
+/// infinity or underflow to zero and report a degenerate homography or a pose of NaNs.
+///
+/// # Errors
+/// 422 `numerically_degenerate` naming the corner list.
+fn check_arithmetic_range(valid: &request::ValidCornersRequest) -> Result<(), Problem> {
+    let s = &valid.setup;
+    // A corner that cannot be undistorted is the estimator's to report.
+    let Ok(rays) = valid
+        .quad
+        .paper_order()
+        .iter()
+        .map(|p| s.camera.normalize(p))
+        .collect::<Result<Vec<_>, _>>()
+    else {
+        return Ok(());
+    };
+    let largest = rays
+        .iter()
+        .flat_map(|r| [r.x().abs(), r.y().abs()])
+        .fold(0.0, f64::max);
+    let spread = rays
+        .iter()
+        .flat_map(|a| rays.iter().map(move |b| (a.0 - b.0).norm()))
+        .fold(0.0, f64::max);
+    let in_range = |v: f64| (1.0 / MAX_SOLVER_MAGNITUDE..=MAX_SOLVER_MAGNITUDE).contains(&v);
+    let size = s.marker.size_mm();
+    if largest <= MAX_SOLVER_MAGNITUDE && in_range(spread) && in_range(size) {
+        return Ok(());
+    }
+    Err(problem::Problem::new(
+        problem::ErrorCode::NumericallyDegenerate,
+        format!(
+            "the corners span {spread:e} and reach {largest:e} focal lengths off axis, and the \
+             marker is {size:e} mm: beyond 1e±75, where the solvers' arithmetic overflows or \
+             underflows in double precision"
+        ),
+    )
+    .with_field(valid.corners_pointer))
 }
 
 #[cfg(test)]

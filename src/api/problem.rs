@@ -54,8 +54,13 @@ pub enum ErrorCode {
     InvalidMarkerSize,
     /// 422: a solver parameter is outside its documented range.
     SolverParameterOutOfRange,
+    /// 422: `max_detect_ms` is not a positive, finite number of milliseconds.
+    InvalidDetectionBudget,
     /// 422: no pose fits the corners.
     NoSolution,
+    /// 422: the inputs' magnitudes are beyond what double-precision arithmetic can solve
+    /// (e.g. corners at 1e150 px): a computed number came out NaN or infinite.
+    NumericallyDegenerate,
     /// 422: the image cannot be decoded (corrupt, truncated or not an image).
     UndecodableImage,
     /// 413: the image declares more pixels than the configured limit.
@@ -123,7 +128,9 @@ impl ErrorCode {
             UndistortionFailed => "Undistortion failed",
             InvalidMarkerSize => "Invalid marker size",
             SolverParameterOutOfRange => "Solver parameter out of range",
+            InvalidDetectionBudget => "Invalid detection budget",
             NoSolution => "No pose fits the corners",
+            NumericallyDegenerate => "Numerically degenerate input",
             UndecodableImage => "Undecodable image",
             ImageTooLarge => "Image too large",
             DetectorUnavailable => "Detector not available",

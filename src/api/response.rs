@@ -1,5 +1,7 @@
 //! Response bodies: the pose of one marker, with rotation and diagnostics.
 
+use super::finite::first_non_finite;
+use super::problem::{ErrorCode, Problem};
 use super::request::MethodDto;
 use crate::estimate::{Ambiguity, Diagnostics, Method, PoseEstimate, TraceStep, Warning};
 use crate::geometry::{
@@ -219,6 +221,18 @@ pub struct PoseResponse {
     pub diagnostics: DiagnosticsDto,
 }
 
+/// The refusal of a pose whose number at `pointer` (within the pose) is not finite.
+pub fn numerically_degenerate(pointer: &str, corners_pointer: &str) -> Problem {
+    Problem::new(
+        ErrorCode::NumericallyDegenerate,
+        format!(
+            "the pose cannot be computed in double precision: {pointer} came out NaN or infinite; \
+             the magnitudes of the corners, intrinsics or marker size are out of reach"
+        ),
+    )
+    .with_field(corners_pointer)
+}
+
 /// Covariance parameter names, in order.
 pub const COVARIANCE_ORDER: [&str; 6] = ["rx_rad", "ry_rad", "rz_rad", "x_mm", "y_mm", "z_mm"];
 
@@ -303,6 +317,27 @@ impl PoseResponse {
                 &marker.centre(),
                 elapsed_us,
             ),
+        }
+    }
+
+    /// [`PoseResponse::new`], checked: every number must be finite (serde_json would write
+    /// NaN or ±∞ as `null` where the schema promises a number). The image path calls this
+    /// for each marker and answers a refusal as the marker's `problem`, with `pose: null`.
+    ///
+    /// # Errors
+    /// 422 `numerically_degenerate` naming the first non-finite number; `field` is
+    /// `corners_pointer` (the corner list whose scale broke the arithmetic).
+    pub fn try_new(
+        estimate: &PoseEstimate,
+        camera: &Camera,
+        marker: &Marker,
+        elapsed_us: f64,
+        corners_pointer: &str,
+    ) -> Result<Self, Problem> {
+        let response = Self::new(estimate, camera, marker, elapsed_us);
+        match first_non_finite(&response) {
+            None => Ok(response),
+            Some(pointer) => Err(numerically_degenerate(&pointer, corners_pointer)),
         }
     }
 

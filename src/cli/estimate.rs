@@ -6,10 +6,9 @@ use super::{EXIT_BAD_INPUT, EXIT_BROKEN_PIPE};
 use clap::Args;
 use qrpose::api::{
     estimate_corners,
-    image::{ImageQuery, estimate_image_from_query},
+    image::{ImageLimits, ImageQuery, estimate_image_from_query},
     problem::{Problem, parse_json},
 };
-use qrpose::detect::decode::DecodeLimits;
 use std::io::{Read, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -91,7 +90,7 @@ fn run_image(path: &PathBuf, args: &EstimateArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    match estimate_image_from_query(&bytes, args.params.clone(), &DecodeLimits::default()) {
+    match estimate_image_from_query(&bytes, args.params.clone(), &ImageLimits::default()) {
         Ok(response) => print_json(&response, args.pretty),
         Err(problem) => report_problem(&problem),
     }

@@ -16,12 +16,17 @@ use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use serde::de::DeserializeOwned;
 use std::pin::Pin;
+use std::time::Duration;
 
 /// The media type `POST` bodies of the JSON endpoints must declare.
 pub const JSON: &str = "application/json";
 
 /// At most this many bytes of an oversized body are read and discarded before the 413.
 pub const DRAIN_LIMIT_BYTES: usize = 64 * 1024 * 1024;
+
+/// A body declared over the limit is discarded in the background, after the 413 has been
+/// sent, for at most this long.
+pub const BACKGROUND_DRAIN_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// At most this much is reserved before the body arrives, whatever `Content-Length` claims.
 const INITIAL_CAPACITY_BYTES: usize = 64 * 1024;
@@ -103,9 +108,13 @@ async fn drain(mut body: Body, mut budget: usize) {
 
 /// Reads the whole body of `request`, at most `limit_bytes`.
 ///
-/// A body declared (`Content-Length`) or found to be longer is drained up to
-/// [`DRAIN_LIMIT_BYTES`] and refused; with `Expect: 100-continue` the client has not sent it
-/// yet, so nothing is read.
+/// A body declared longer (`Content-Length`) is refused at once, without waiting for it: what
+/// the client still sends is read and discarded in the background (up to
+/// [`DRAIN_LIMIT_BYTES`], for at most [`BACKGROUND_DRAIN_TIMEOUT`]) while the 413 goes out,
+/// so that a client still uploading reads the answer rather than a connection reset, and one
+/// that sends only the headers gets it without delay. A body found to be longer while
+/// reading is drained the same way before the refusal. With `Expect: 100-continue` the
+/// client has not sent the body yet, so nothing is read.
 ///
 /// # Errors
 /// [`BodyError::TooLarge`] over the limit, [`BodyError::Unreadable`] on a transport error.
@@ -144,7 +153,11 @@ async fn read_limited(
     let declared = declared_length(headers);
     if declared.is_some_and(|n| n > limit_bytes) {
         if !expects_continue(headers) {
-            drain(body, DRAIN_LIMIT_BYTES).await;
+            tokio::spawn(async move {
+                let _ =
+                    tokio::time::timeout(BACKGROUND_DRAIN_TIMEOUT, drain(body, DRAIN_LIMIT_BYTES))
+                        .await;
+            });
         }
         return Err(too_large);
     }

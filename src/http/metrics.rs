@@ -10,6 +10,10 @@
 //! | `estimations_running` | gauge | | estimations running now |
 //! | `estimation_rejections_total` | counter | | requests refused with 503 `overloaded` |
 //! | `image_codes_detected` | histogram | | QR codes found per image answered 200 |
+//! | `http_connections_open` | gauge | | client connections open now |
+//! | `http_connections_closed_total` | counter | reason | connections closed by a limit |
+//! | `http_connection_limit_reached_total` | counter | | accepts that found the limit reached |
+//! | `http_accept_errors_total` | counter | | failed accepts (e.g. out of descriptors) |
 //!
 //! `route` is the route template (`/v1/pose/corners`), or `unmatched` for unknown paths, so
 //! that scanning clients cannot create unbounded label values. A new per-endpoint metric is
@@ -108,6 +112,68 @@ pub struct QueueMetrics {
     pub rejected: Counter,
 }
 
+/// Why the server closed a connection (label `reason` of `http_connections_closed_total`).
+#[derive(Debug, Clone, Copy, Hash, PartialEq, Eq)]
+pub enum CloseReason {
+    /// No complete request head within `--header-read-timeout-ms`.
+    HeaderTimeout,
+    /// Idle for `--idle-timeout-ms` after its last response.
+    IdleTimeout,
+    /// Closed to make room for a new connection at `--max-connections`.
+    Evicted,
+}
+
+impl CloseReason {
+    /// The label value.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CloseReason::HeaderTimeout => "header_timeout",
+            CloseReason::IdleTimeout => "idle_timeout",
+            CloseReason::Evicted => "evicted",
+        }
+    }
+}
+
+/// Labels of `http_connections_closed_total`.
+#[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct CloseLabels {
+    /// `header_timeout`, `idle_timeout` or `evicted`.
+    pub reason: String,
+}
+
+/// The connection metrics, shared with the accept loop ([`super::conn`]).
+#[derive(Debug, Clone, Default)]
+pub struct ConnectionMetrics {
+    /// Client connections open now.
+    pub open: Gauge,
+    /// Connections closed by a limit, by reason.
+    pub closed: Family<CloseLabels, Counter>,
+    /// Accepts that found `--max-connections` reached.
+    pub limit_reached: Counter,
+    /// Failed accepts.
+    pub accept_errors: Counter,
+}
+
+impl ConnectionMetrics {
+    /// Counts one connection closed for `reason`.
+    pub fn closed(&self, reason: CloseReason) {
+        self.closed
+            .get_or_create(&CloseLabels {
+                reason: reason.as_str().to_owned(),
+            })
+            .inc();
+    }
+
+    /// Connections closed for `reason` so far.
+    pub fn closed_count(&self, reason: CloseReason) -> u64 {
+        self.closed
+            .get_or_create(&CloseLabels {
+                reason: reason.as_str().to_owned(),
+            })
+            .get()
+    }
+}
+
 /// Every metric of the service and the registry that exposes them.
 #[derive(Debug)]
 pub struct Metrics {
@@ -118,6 +184,7 @@ pub struct Metrics {
     not_converged: Family<MethodLabels, Counter>,
     codes_detected: Histogram,
     queue: QueueMetrics,
+    connections: ConnectionMetrics,
 }
 
 impl Default for Metrics {
@@ -179,6 +246,27 @@ impl Metrics {
             "Requests refused with 503 overloaded because the estimation queue was full",
             queue.rejected.clone(),
         );
+        let connections = ConnectionMetrics::default();
+        registry.register(
+            "http_connections_open",
+            "Client connections open now",
+            connections.open.clone(),
+        );
+        registry.register(
+            "http_connections_closed",
+            "Connections closed by a limit: header_timeout, idle_timeout, evicted (to make room at --max-connections)",
+            connections.closed.clone(),
+        );
+        registry.register(
+            "http_connection_limit_reached",
+            "Accepted connections that found --max-connections reached",
+            connections.limit_reached.clone(),
+        );
+        registry.register(
+            "http_accept_errors",
+            "Failed accepts (e.g. out of file descriptors), each followed by a back-off",
+            connections.accept_errors.clone(),
+        );
         Self {
             registry,
             requests,
@@ -187,7 +275,13 @@ impl Metrics {
             not_converged,
             codes_detected,
             queue,
+            connections,
         }
+    }
+
+    /// The connection metrics, for the accept loop.
+    pub fn connections(&self) -> ConnectionMetrics {
+        self.connections.clone()
     }
 
     /// The queue's share, for [`super::queue::EstimationQueue::new`].

@@ -6,8 +6,12 @@
 //! period.
 //!
 //! CPU-bound work (parsing, estimating) runs on dedicated worker threads behind the bounded
-//! [`queue::EstimationQueue`]; see that module for the admission rules.
+//! [`queue::EstimationQueue`]; see that module for the admission rules (and
+//! [`routes::corners`] for the one exception: short corners estimates run inline while the
+//! queue is full). Connections are served by [`conn`]: header-read and idle timeouts, the
+//! connection limit, accept back-off.
 
+pub mod conn;
 pub mod error;
 pub mod extract;
 pub mod image_input;
@@ -24,12 +28,10 @@ use crate::config::millis;
 use axum::Router;
 use axum::extract::{DefaultBodyLimit, Request};
 use axum::middleware::{from_fn, from_fn_with_state, map_request};
-use axum::serve::ListenerExt;
 use error::ApiError;
 use std::future::Future;
 use std::sync::Arc;
 use tokio::net::TcpListener;
-use tokio_util::sync::CancellationToken;
 use tower::ServiceBuilder;
 use tower_http::LatencyUnit;
 use tower_http::catch_panic::CatchPanicLayer;
@@ -91,6 +93,8 @@ async fn method_not_allowed(request: Request) -> ApiError {
 /// Serves `state`'s application on `listener` until `shutdown` completes, then stops
 /// accepting, marks the service as draining (`/readyz` answers 503) and waits for in-flight
 /// requests, at most `settings.shutdown_grace`; connections still open then are dropped.
+/// Connections are served by [`conn`], which enforces the header-read and idle timeouts and
+/// the connection limit of the settings.
 ///
 /// # Errors
 /// An I/O error of the listener.
@@ -98,43 +102,31 @@ pub async fn serve<F>(listener: TcpListener, state: AppState, shutdown: F) -> st
 where
     F: Future<Output = ()> + Send + 'static,
 {
-    let grace = state.settings.shutdown_grace;
-    let lifecycle = state.lifecycle.clone();
-    let draining = CancellationToken::new();
-    let signal = {
-        let draining = draining.clone();
-        async move {
-            shutdown.await;
-            lifecycle.start_draining();
-            tracing::info!(
-                grace_ms = millis(grace),
-                "shutting down: no new connections, finishing in-flight requests"
-            );
-            draining.cancel();
-        }
+    let settings = &state.settings;
+    let limits = conn::ConnectionLimits {
+        header_read_timeout: settings.header_read_timeout,
+        idle_timeout: settings.idle_timeout,
+        max_connections: settings.max_connections.get(),
+        shutdown_grace: settings.shutdown_grace,
     };
-    let listener = listener.tap_io(|tcp| {
-        if let Err(e) = tcp.set_nodelay(true) {
-            tracing::debug!(error = %e, "cannot set TCP_NODELAY");
-        }
-    });
-    let server = axum::serve(listener, router(state)).with_graceful_shutdown(signal);
-    tokio::select! {
-        result = async move { server.await } => {
-            tracing::info!("all requests finished; stopped");
-            result
-        }
-        () = async move {
-            draining.cancelled().await;
-            tokio::time::sleep(grace).await;
-        } => {
-            tracing::warn!(
-                grace_ms = millis(grace),
-                "grace period over; dropping the connections still open"
-            );
-            Ok(())
-        }
-    }
+    let lifecycle = state.lifecycle.clone();
+    let metrics = state.metrics.connections();
+    let on_shutdown = move || {
+        lifecycle.start_draining();
+        tracing::info!(
+            grace_ms = millis(limits.shutdown_grace),
+            "shutting down: no new connections, finishing in-flight requests"
+        );
+    };
+    conn::serve_connections(
+        listener,
+        router(state),
+        limits,
+        metrics,
+        shutdown,
+        on_shutdown,
+    )
+    .await
 }
 
 #[cfg(test)]

@@ -437,3 +437,31 @@ async fn a_body_at_the_limit_is_read_and_judged_on_its_content() {
     // Assert
     assert_eq!(response.status(), 200);
 }
+
+#[tokio::test]
+async fn magnitudes_beyond_double_precision_get_422_numerically_degenerate() {
+    // Arrange: the two requests. Corners at ±1e150 px were a 200 with z = 2.5e-146 mm
+    // and a covariance of nulls; a square of side 1e200 px was "corners 1 and 2 coincide".
+    let app = spawn_app().await;
+    let cases = [
+        json!([
+            [-1e150, -1e150],
+            [1e150, -1e150],
+            [1e150, 1e150],
+            [-1e150, 1e150]
+        ]),
+        json!([[0.0, 0.0], [1e200, 0.0], [1e200, 1e200], [0.0, 1e200]]),
+    ];
+    for corners in cases {
+        let mut body = valid_request();
+        body["corners_px"] = corners.clone();
+
+        // Act
+        let response = app.post_corners(&body).await;
+
+        // Assert
+        let problem = assert_problem(response, 422, NumericallyDegenerate).await;
+        assert_eq!(problem.field.as_deref(), Some("/corners_px"), "{corners}");
+    }
+    app.assert_up("extreme magnitudes").await;
+}

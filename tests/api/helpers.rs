@@ -138,14 +138,25 @@ impl TestApp {
         .await
     }
 
-    /// Sends the valid corners request from a task of its own, for a test that must act
-    /// while the request is in flight.
-    pub fn post_corners_in_background(&self) -> JoinHandle<reqwest::Result<Response>> {
+    /// Sends a request that goes through the estimation queue ([`blank_png`] to the image
+    /// endpoint; corners requests run inline) from a task of its own, for a test that must
+    /// act while the request waits or runs.
+    pub fn post_queued_in_background(&self) -> JoinHandle<reqwest::Result<Response>> {
         let request = self
             .client
-            .post(format!("{}/v1/pose/corners", self.address))
-            .json(&valid_request());
+            .post(format!("{}/v1/pose/image?{PHOTO_QUERY}", self.address))
+            .header(header::CONTENT_TYPE, "image/png")
+            .body(blank_png());
         tokio::spawn(request.send())
+    }
+
+    /// Sends a request that goes through the estimation queue (see
+    /// [`TestApp::post_queued_in_background`]) and waits for the answer.
+    pub async fn post_queued(&self) -> Response {
+        self.post_queued_in_background()
+            .await
+            .expect("the task")
+            .expect("the server answers")
     }
 
     /// Panics unless a valid corners request is answered 200.
@@ -225,6 +236,17 @@ pub fn valid_request() -> Value {
         "camera": {"fx_px": 1000.0, "fy_px": 1000.0, "cx_px": 639.5, "cy_px": 359.5},
         "marker": {"size_mm": 50.0}
     })
+}
+
+/// A 32x32 white PNG: an image request that the estimation queue runs in a few ms and that
+/// is answered 200 with no markers.
+pub fn blank_png() -> Vec<u8> {
+    let image = image::GrayImage::from_pixel(32, 32, image::Luma([255u8]));
+    let mut out = Vec::new();
+    image
+        .write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+        .expect("a PNG encodes");
+    out
 }
 
 /// One estimation worker held busy by the test until [`Gate::release`] (or drop).

@@ -121,6 +121,31 @@ fn catalogue() -> Vec<Case> {
     // Cut inside the entropy-coded scan: a lenient decoder paints the rest grey.
     let truncated_in_scan = jpeg[..jpeg.len() * 7 / 10].to_vec();
     let mut cases = vec![
+        raw(
+            "zero detection deadline",
+            "&max_detect_ms=0",
+            jpeg.clone(),
+            JPEG,
+            InvalidDetectionBudget,
+            Some("max_detect_ms"),
+        ),
+        raw(
+            "unknown effort",
+            "&effort=maximal",
+            jpeg.clone(),
+            JPEG,
+            UnknownVariant,
+            Some("effort"),
+        ),
+        multipart(
+            "negative detection deadline in the request part",
+            &[
+                image_part(&jpeg),
+                request_part(&request_with("/max_detect_ms", json!(-1.0))),
+            ],
+            InvalidDetectionBudget,
+            Some("/max_detect_ms"),
+        ),
         raw("empty body", "&", Vec::new(), JPEG, UndecodableImage, None),
         raw(
             "random bytes as JPEG",

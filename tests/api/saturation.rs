@@ -1,6 +1,8 @@
 //! Saturation: a full estimation queue answers 503 `overloaded` at once, a request that
 //! waits too long 503 `timeout`, both with `Retry-After`. The test occupies the workers
 //! itself through the server's own queue, so nothing depends on how fast an estimate is.
+//! Queued requests are image requests: short corners estimates run inline and never queue
+//! (`a_corners_request_is_answered_while_every_worker_is_busy`).
 
 use crate::helpers::{
     assert_problem, occupy_worker, one_worker, queue_reaches, spawn_app_with, valid_request,
@@ -8,6 +10,7 @@ use crate::helpers::{
 use qrpose::api::problem::ErrorCode;
 use qrpose::config::Settings;
 use reqwest::{StatusCode, header};
+use serde_json::json;
 use std::time::Duration;
 
 #[tokio::test]
@@ -17,7 +20,7 @@ async fn a_full_queue_answers_503_overloaded_with_retry_after() {
     let gate = occupy_worker(&app).await;
 
     // Act
-    let refused = app.post_corners(&valid_request()).await;
+    let refused = app.post_queued().await;
 
     // Assert
     assert_eq!(refused.headers()[header::RETRY_AFTER], "1");
@@ -48,7 +51,7 @@ async fn a_request_waiting_past_the_timeout_answers_503_timeout() {
     let gate = occupy_worker(&app).await;
 
     // Act
-    let timed_out = app.post_corners(&valid_request()).await;
+    let timed_out = app.post_queued().await;
 
     // Assert
     assert_eq!(timed_out.headers()[header::RETRY_AFTER], "1");
@@ -67,17 +70,12 @@ async fn queued_requests_are_served_in_turn_once_a_worker_frees() {
     // Arrange: one worker (taken) and two waiting places, both filled.
     let app = spawn_app_with(one_worker(2)).await;
     let gate = occupy_worker(&app).await;
-    let first = app.post_corners_in_background();
-    let second = app.post_corners_in_background();
+    let first = app.post_queued_in_background();
+    let second = app.post_queued_in_background();
     queue_reaches(&app, 1, 2).await;
     let readiness: serde_json::Value = app.get("/readyz").await.json().await.expect("JSON");
     assert_eq!(readiness["queue"]["waiting"], 2);
-    assert_problem(
-        app.post_corners(&valid_request()).await,
-        503,
-        ErrorCode::Overloaded,
-    )
-    .await;
+    assert_problem(app.post_queued().await, 503, ErrorCode::Overloaded).await;
 
     // Act
     gate.release().await;
@@ -87,4 +85,29 @@ async fn queued_requests_are_served_in_turn_once_a_worker_frees() {
         let response = request.await.expect("the task").expect("an answer");
         assert_eq!(response.status(), StatusCode::OK);
     }
+}
+
+#[tokio::test]
+async fn a_corners_request_is_answered_while_every_worker_is_busy() {
+    // Arrange: the only worker taken and no waiting place: a queued request is refused.
+    let app = spawn_app_with(one_worker(0)).await;
+    let gate = occupy_worker(&app).await;
+    assert_problem(app.post_queued().await, 503, ErrorCode::Overloaded).await;
+
+    // Act: a short estimate runs inline, on the async thread.
+    let inline = app.post_corners(&valid_request()).await;
+
+    // Assert
+    assert_eq!(inline.status(), StatusCode::OK);
+    let metrics = app.get("/metrics").await.text().await.expect("text");
+    assert!(
+        metrics.contains("qrpose_estimator_iterations_count{method=\"reprojection\"} 1"),
+        "the inline estimate is counted: {metrics}"
+    );
+    // A long one (a trace to serialise) still goes to the workers, which are full.
+    let mut long = valid_request();
+    long["solver"] = json!({"method": "paper", "trace": true});
+    assert_problem(app.post_corners(&long).await, 503, ErrorCode::Overloaded).await;
+    gate.release().await;
+    assert_eq!(app.post_corners(&long).await.status(), StatusCode::OK);
 }

@@ -11,7 +11,7 @@ async fn in_flight_requests_finish_after_shutdown_begins() {
     // Arrange: a request waiting for the only worker, which the test holds.
     let app = spawn_app_with(one_worker(1)).await;
     let gate = occupy_worker(&app).await;
-    let in_flight = app.post_corners_in_background();
+    let in_flight = app.post_queued_in_background();
     queue_reaches(&app, 1, 1).await;
 
     // Act
@@ -48,7 +48,7 @@ async fn the_grace_period_bounds_the_wait_for_stuck_requests() {
     })
     .await;
     let gate = occupy_worker(&app).await;
-    let stuck = app.post_corners_in_background();
+    let stuck = app.post_queued_in_background();
     queue_reaches(&app, 1, 1).await;
 
     // Act

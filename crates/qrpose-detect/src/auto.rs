@@ -1,23 +1,33 @@
-//! The `auto` strategy of [`crate::find_candidates`]: a quick pass first (zxing-cpp's single
-//! read when built, else rxing on a half-scale copy of a large image, then on full-resolution
-//! crops around what it read), then every built backend at full resolution, best first,
-//! then second passes of the best one on variants of the image made by [`crate::filters`]
-//! (global-histogram binariser, blurred, contrast-stretched, inverted, sharpened, double
-//! scale). It stops after the first step that reads a code; candidates found on the way are
-//! re-read and merged ([`crate::merge_candidates`]).
+//! The `auto` strategy of [`crate::find_candidates`], bounded by a [`Budget`].
+//!
+//! 1. **Find** (every effort): rxing reads the whole frame at full resolution, where small
+//!    codes are, and (not `fast`) at half scale, where codes that fill the frame, moiré on
+//!    screens and blur read better; a zxing-cpp build reads with zxing-cpp first. Every
+//!    symbol is kept, however many (a shelf shows dozens), and every finder-pattern triple
+//!    that did not read becomes a [`Region`].
+//! 2. **Look closer** (`balanced`, `thorough`): only where a region is, never on the whole
+//!    frame: a crop around it goes through the other binariser, rqrr, and the image
+//!    variants of [`crate::filters`] (global histogram, denoised, contrast-stretched,
+//!    inverted, sharpened, double scale) until it reads. A frame with nothing finder-like
+//!    costs the two reads of step 1 and nothing more.
+//! 3. **Everything** (`thorough`): every backend and every variant on the whole frame, as
+//!    long as the deadline allows.
+//!
+//! Before every pass after the first the deadline is checked ([`PassLog`]); symbols found on
+//! the way are re-read through their module grid and merged ([`crate::merge_candidates`]).
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
 #![allow(clippy::cast_possible_truncation)]
 
+use crate::budget::{Effort, PassLog};
 use crate::filters::{downscale_half, invert, sharpen, stretch_contrast, upscale_double};
 use crate::gray::GrayImage;
 use crate::merge::{any_decoded, reread_undecoded};
+use crate::region::{Crop, Region, unread_regions};
 #[cfg(feature = "zxing-cpp")]
 use crate::zxing_cpp;
-use crate::{
-    Backend, Candidate, DetectError, Detector, auto_order, detector_for, merge_candidates,
-};
+use crate::{Backend, Candidate, Detector, auto_order, detector_for, merge_candidates};
 use crate::{rqrr, rxing};
 use qrpose_core::geometry::frames::PixelPoint;
 
@@ -29,6 +39,7 @@ pub const UPSCALE_MAX_SIDE_PX: usize = 1920;
 /// One second pass of `auto`: a detector on a variant of the image, and the scale that maps
 /// the variant's pixels back (source px per variant px).
 struct SecondPass {
+    name: &'static str,
     detector: Box<dyn Detector>,
     image: GrayImage,
     scale: f64,
@@ -66,8 +77,12 @@ fn second_passes(image: &GrayImage, best: Backend) -> impl Iterator<Item = Secon
             _ => Some(Box::new(rxing::RxingDetector::global_histogram())),
         }
     };
-    let pass = |detector: Option<Box<dyn Detector>>, image: Option<GrayImage>, scale: f64| {
+    let pass = |name: &'static str,
+                detector: Option<Box<dyn Detector>>,
+                image: Option<GrayImage>,
+                scale: f64| {
         Some(SecondPass {
+            name,
             detector: detector?,
             image: image?,
             scale,
@@ -75,16 +90,24 @@ fn second_passes(image: &GrayImage, best: Backend) -> impl Iterator<Item = Secon
     };
     let small = image.width().max(image.height()) <= UPSCALE_MAX_SIDE_PX;
     let makers: Vec<Make<'_>> = vec![
-        Box::new(move || pass(global(), Some(image.clone()), 1.0)),
-        Box::new(move || pass(global(), sharpen(image, DENOISE_SIGMA_PX, -1.0), 1.0)),
-        Box::new(move || pass(local(), stretch_contrast(image), 1.0)),
+        Box::new(move || pass("global-histogram", global(), Some(image.clone()), 1.0)),
+        Box::new(move || {
+            pass(
+                "denoised",
+                global(),
+                sharpen(image, DENOISE_SIGMA_PX, -1.0),
+                1.0,
+            )
+        }),
+        Box::new(move || pass("stretched", local(), stretch_contrast(image), 1.0)),
         Box::new(move || {
             (best != Backend::ZxingCpp)
-                .then(|| pass(local(), invert(image), 1.0))
+                .then(|| pass("inverted", local(), invert(image), 1.0))
                 .flatten()
         }),
         Box::new(move || {
             pass(
+                "sharpened",
                 local(),
                 sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT),
                 1.0,
@@ -92,7 +115,7 @@ fn second_passes(image: &GrayImage, best: Backend) -> impl Iterator<Item = Secon
         }),
         Box::new(move || {
             small
-                .then(|| pass(local(), upscale_double(image), 0.5))
+                .then(|| pass("double", local(), upscale_double(image), 0.5))
                 .flatten()
         }),
         Box::new(move || {
@@ -102,7 +125,7 @@ fn second_passes(image: &GrayImage, best: Backend) -> impl Iterator<Item = Secon
                 2.0 * SHARPEN_DOUBLE_SIGMA_PX,
                 SHARPEN_DOUBLE_AMOUNT,
             );
-            pass(local(), sharp, 0.5)
+            pass("double sharpened", local(), sharp, 0.5)
         }),
     ];
     makers.into_iter().filter_map(|make| make())
@@ -129,155 +152,291 @@ fn rescale(mut c: Candidate, scale: f64) -> Candidate {
     c
 }
 
-/// Images whose shorter side has at least this many px are first searched at half scale by
-/// the pure-Rust backends (`auto` in a build without zxing-cpp): a quarter of the pixels to
-/// binarise and scan. Codes of at least about 4 px per module (2 px at half scale) are read
-/// there; smaller ones fall through to the full-resolution pass.
+/// Images whose shorter side has at least this many px are also read at half scale by
+/// `balanced` and `thorough` (smaller ones are read at full resolution only): a quarter of
+/// the pixels, where codes that fill the frame and moiré read better.
 pub const HALF_SCALE_FIRST_MIN_SIDE_PX: usize = 700;
 
-/// Margin around a symbol found at half scale for the full-resolution read of its
-/// surroundings: a share of the symbol's bounding box on each side, plus the quiet zone.
-const CROP_MARGIN_SHARE: f64 = 0.25;
-/// Fixed extra margin of that crop, px.
-const CROP_MARGIN_PX: f64 = 8.0;
+/// Decoded symbols in a pass's result.
+fn decoded(found: &[Candidate]) -> usize {
+    found.iter().filter(|c| c.payload.is_some()).count()
+}
 
-/// The quick first pass of `auto`: zxing-cpp's one read when it is built, otherwise rxing
-/// on a half-scale copy of a large image and then again at full resolution on a crop around
-/// each symbol it read (whole-pixel corners at full resolution, for the refinement, at the
-/// cost of a few small images); `None` when there is no quick pass for this image.
-fn quick_pass(image: &GrayImage, best: Backend) -> Option<Vec<Candidate>> {
-    match best {
+/// What the passes so far have found.
+struct Finds<'a> {
+    image: &'a GrayImage,
+    found: Vec<Candidate>,
+    regions: Vec<Region>,
+    /// Corners of undecoded candidates already re-read.
+    tried: Vec<[PixelPoint; 4]>,
+}
+
+impl Finds<'_> {
+    /// Re-reads the undecoded of `new` through their module grid and merges them in.
+    fn add(&mut self, mut new: Vec<Candidate>) {
+        reread_undecoded(self.image, &mut new, &mut self.tried);
+        merge_candidates(&mut self.found, new);
+    }
+}
+
+/// Step 1: the reads of the whole frame.
+fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &mut PassLog) {
+    let image = finds.image;
+    if best == Backend::ZxingCpp {
         #[cfg(feature = "zxing-cpp")]
-        Backend::ZxingCpp => Some(zxing_cpp::ZxingCppDetector::fast().detect(image)),
-        Backend::Rxing if image.width().min(image.height()) >= HALF_SCALE_FIRST_MIN_SIDE_PX => {
-            let half = downscale_half(image)?;
-            let mut found = Vec::new();
-            for rough in rxing::RxingDetector::hybrid().detect(&half) {
-                let rough = rescale(rough, 2.0);
-                let Some(crop) = Crop::around(image, &rough.corners_px) else {
-                    continue;
-                };
-                let precise = crop
-                    .image
-                    .as_ref()
-                    .map(|c| rxing::RxingDetector::hybrid().detect(c));
-                let precise: Vec<Candidate> = precise
-                    .unwrap_or_default()
-                    .into_iter()
-                    .filter(|c| c.payload.is_some())
-                    .map(|c| crop.to_source(c))
-                    .collect();
-                merge_candidates(&mut found, precise);
-            }
-            Some(found)
+        {
+            let read = log.run(
+                "zxing-cpp full",
+                |v: &Vec<Candidate>| decoded(v),
+                || zxing_cpp::ZxingCppDetector::fast().detect(image),
+            );
+            finds.add(read);
         }
-        _ => None,
+        if !log.may_continue() {
+            return;
+        }
     }
-}
-
-/// A rectangle of an image, copied out, with its offset in the source.
-struct Crop {
-    image: Option<GrayImage>,
-    x0: usize,
-    y0: usize,
-}
-
-impl Crop {
-    /// The bounding box of `corners_px` widened by the crop margins, clamped to the image.
-    fn around(image: &GrayImage, corners_px: &[PixelPoint; 4]) -> Option<Self> {
-        let (mut lo_u, mut lo_v, mut hi_u, mut hi_v) = (
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        );
-        for p in corners_px {
-            lo_u = lo_u.min(p.u());
-            lo_v = lo_v.min(p.v());
-            hi_u = hi_u.max(p.u());
-            hi_v = hi_v.max(p.v());
-        }
-        if !(lo_u.is_finite() && lo_v.is_finite() && hi_u.is_finite() && hi_v.is_finite()) {
-            return None;
-        }
-        let margin = CROP_MARGIN_SHARE * (hi_u - lo_u).max(hi_v - lo_v) + CROP_MARGIN_PX;
-        let max_u = (image.width() - 1) as f64;
-        let max_v = (image.height() - 1) as f64;
-        let x0 = (lo_u - margin).clamp(0.0, max_u).floor() as usize;
-        let y0 = (lo_v - margin).clamp(0.0, max_v).floor() as usize;
-        let x1 = (hi_u + margin).clamp(0.0, max_u).ceil() as usize;
-        let y1 = (hi_v + margin).clamp(0.0, max_v).ceil() as usize;
-        let (w, h) = (x1.checked_sub(x0)? + 1, y1.checked_sub(y0)? + 1);
-        let mut pixels = Vec::with_capacity(w * h);
-        for row in image.pixels().chunks_exact(image.width()).skip(y0).take(h) {
-            pixels.extend_from_slice(row.get(x0..x0 + w)?);
-        }
-        Some(Self {
-            image: GrayImage::new(w, h, pixels),
-            x0,
-            y0,
-        })
+    let (read, regions) = log.run(
+        "rxing full",
+        |r: &(Vec<Candidate>, Vec<Region>)| decoded(&r.0),
+        || rxing::RxingDetector::hybrid().detect_with_regions(image),
+    );
+    finds.add(read);
+    finds.regions.extend(regions);
+    let large = image.width().min(image.height()) >= HALF_SCALE_FIRST_MIN_SIDE_PX;
+    if effort == Effort::Fast || !large || !log.may_continue() {
+        return;
     }
-
-    /// A candidate found in the crop, in source pixels.
-    fn to_source(&self, mut c: Candidate) -> Candidate {
-        let (dx, dy) = (self.x0 as f64, self.y0 as f64);
-        c.corners_px = c
-            .corners_px
-            .map(|p| PixelPoint::new(p.u() + dx, p.v() + dy));
-        c
-    }
-}
-
-/// Every candidate `auto` finds in `image`, before refinement (see the module doc).
-///
-/// # Errors
-/// [`DetectError::BackendNotBuilt`] only if a backend of [`auto_order`] is not built (it
-/// lists built ones only).
-pub(crate) fn find_candidates(image: &GrayImage) -> Result<Vec<Candidate>, DetectError> {
-    let order = auto_order();
-    let mut found: Vec<Candidate> = Vec::new();
-    let mut tried = Vec::new();
-    let Some(&best) = order.first() else {
-        return Ok(found);
+    let Some(half) = downscale_half(image) else {
+        return;
     };
-    // Each step's candidates are re-read before they are merged, so that an unread
-    // duplicate from an earlier step does not shadow a symbol this step can read.
-    let mut add = |found: &mut Vec<Candidate>, mut new: Vec<Candidate>| {
-        reread_undecoded(image, &mut new, &mut tried);
-        merge_candidates(found, new);
-        any_decoded(found)
-    };
-    if let Some(quick) = quick_pass(image, best)
-        && add(&mut found, quick)
+    read_level(
+        finds,
+        &half,
+        2.0,
+        "rxing half",
+        rxing::RxingDetector::hybrid(),
+        log,
+    );
+    // The smallest level: codes whose modules are wider than the local binariser's
+    // neighbourhood (a code that fills a 12 MP frame) and moiré read there, by the
+    // global-histogram binariser as well.
+    let (mut small, mut scale) = (half, 2.0);
+    while small.width().max(small.height()) > SMALL_LEVEL_MAX_SIDE_PX
+        || (scale < 4.0 && small.width().min(small.height()) >= 2 * SMALL_LEVEL_MIN_SIDE_PX)
     {
-        return Ok(found);
+        let Some(next) = downscale_half(&small) else {
+            return;
+        };
+        (small, scale) = (next, 2.0 * scale);
     }
-    for backend in &order {
-        if add(&mut found, detector_for(*backend)?.detect(image)) {
-            return Ok(found);
+    if scale > 2.0 && log.may_continue() {
+        read_level(
+            finds,
+            &small,
+            scale,
+            "rxing small",
+            rxing::RxingDetector::hybrid(),
+            log,
+        );
+    }
+    if log.may_continue() {
+        let name = if scale > 2.0 {
+            "rxing small global-histogram"
+        } else {
+            "rxing half global-histogram"
+        };
+        read_level(
+            finds,
+            &small,
+            scale,
+            name,
+            rxing::RxingDetector::global_histogram(),
+            log,
+        );
+    }
+}
+
+/// The longest side of the smallest level of step 1, px.
+pub const SMALL_LEVEL_MAX_SIDE_PX: usize = 800;
+/// The smallest level is at least quarter scale when its shorter side stays at least this
+/// long there, px (screens photographed close: moiré at half scale).
+pub const SMALL_LEVEL_MIN_SIDE_PX: usize = 300;
+
+/// Images of at most this many pixels in which nothing was read get step 3 (every backend
+/// and variant on the whole frame) at `balanced` too: on a small frame it costs what a crop
+/// does, and small, low-resolution photos are where the variants read what the first reads
+/// miss.
+pub const WHOLE_FRAME_MAX_PIXELS: usize = 400_000;
+
+/// One read of a downscaled copy (`scale` source px per copy px). Whole-pixel corners at
+/// that scale are `scale` pixels wide at full resolution, so a symbol new there is read
+/// again on a full-resolution crop; its unread triples become regions.
+fn read_level(
+    finds: &mut Finds<'_>,
+    level: &GrayImage,
+    scale: f64,
+    name: &str,
+    detector: rxing::RxingDetector,
+    log: &mut PassLog,
+) {
+    let image = finds.image;
+    let (read, regions) = log.run(
+        name,
+        |r: &(Vec<Candidate>, Vec<Region>)| decoded(&r.0),
+        || detector.detect_with_regions(level),
+    );
+    for rough in read.into_iter().map(|c| rescale(c, scale)) {
+        if finds.found.iter().any(|f| same_place(f, &rough)) {
+            continue;
+        }
+        let precise = Crop::around(image, &rough.corners_px).map(|crop| {
+            let read = crop
+                .image
+                .as_ref()
+                .map(|c| rxing::RxingDetector::hybrid().detect(c))
+                .unwrap_or_default();
+            read.into_iter()
+                .filter(|c| c.payload.is_some())
+                .map(|c| crop.to_source(c))
+                .collect::<Vec<_>>()
+        });
+        match precise {
+            Some(p) if !p.is_empty() => finds.add(p),
+            _ => finds.add(vec![rough]),
         }
     }
+    finds
+        .regions
+        .extend(regions.into_iter().map(|r| r.rescaled(scale)));
+}
+
+/// Whether two candidates are the same symbol (see [`crate::merge_candidates`]).
+fn same_place(a: &Candidate, b: &Candidate) -> bool {
+    let mut probe = vec![a.clone()];
+    merge_candidates(&mut probe, vec![b.clone()]);
+    probe.len() == 1
+}
+
+/// The passes of step 2 on one crop, cheapest first: the image variants of
+/// [`second_passes`], then rqrr (its own finder search; the slowest, 20-30 ms even on a
+/// small crop).
+fn look_closer(crop: &GrayImage, best: Backend) -> impl Iterator<Item = SecondPass> + '_ {
+    let rqrr = std::iter::once_with(move || SecondPass {
+        name: "rqrr",
+        detector: Box::new(rqrr::RqrrDetector),
+        image: crop.clone(),
+        scale: 1.0,
+    });
+    second_passes(crop, best).chain(rqrr)
+}
+
+/// Step 2: more passes on each unread region's crop, until it reads or the deadline comes.
+fn regions(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
+    let regions = unread_regions(std::mem::take(&mut finds.regions), &finds.found);
+    for (k, region) in regions.iter().enumerate() {
+        let Some(crop) = Crop::of_region(finds.image, region) else {
+            continue;
+        };
+        let Some(pixels) = crop.image.as_ref() else {
+            continue;
+        };
+        for pass in look_closer(pixels, best) {
+            if !log.may_continue() {
+                return;
+            }
+            let read = log.run(
+                format!("region {k} {}", pass.name),
+                |v: &Vec<Candidate>| decoded(v),
+                || {
+                    pass.detector
+                        .detect(&pass.image)
+                        .into_iter()
+                        .map(|c| crop.to_source(rescale(c, pass.scale)))
+                        .collect::<Vec<_>>()
+                },
+            );
+            let done = any_decoded(&read);
+            finds.add(read);
+            if done {
+                break;
+            }
+        }
+    }
+}
+
+/// Step 3: every variant, then every other backend (rxing read the frame in step 1), on
+/// the whole frame.
+fn everything(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
+    let image = finds.image;
     for pass in second_passes(image, best) {
-        let mut more: Vec<Candidate> = pass
-            .detector
-            .detect(&pass.image)
-            .into_iter()
-            .map(|c| rescale(c, pass.scale))
-            .collect();
-        if pass.scale < 1.0 && !any_decoded(&more) {
-            // rqrr finds blurred symbols on the enlarged copy that it cannot read;
-            // their refined grids often can be (at full resolution).
-            more.extend(
-                rqrr::RqrrDetector
+        if !log.may_continue() {
+            return;
+        }
+        let read = log.run(
+            format!("whole {}", pass.name),
+            |v: &Vec<Candidate>| decoded(v),
+            || {
+                let mut more: Vec<Candidate> = pass
+                    .detector
                     .detect(&pass.image)
                     .into_iter()
-                    .map(|c| rescale(c, pass.scale)),
-            );
-        }
-        if add(&mut found, more) {
-            break;
-        }
+                    .map(|c| rescale(c, pass.scale))
+                    .collect();
+                if pass.scale < 1.0 && !any_decoded(&more) {
+                    // rqrr finds blurred symbols on the enlarged copy that it cannot read;
+                    // their refined grids often can be (at full resolution).
+                    more.extend(
+                        rqrr::RqrrDetector
+                            .detect(&pass.image)
+                            .into_iter()
+                            .map(|c| rescale(c, pass.scale)),
+                    );
+                }
+                more
+            },
+        );
+        finds.add(read);
     }
-    Ok(found)
+    for backend in auto_order().into_iter().filter(|b| *b != Backend::Rxing) {
+        if !log.may_continue() {
+            return;
+        }
+        let Ok(detector) = detector_for(backend) else {
+            continue;
+        };
+        let read = log.run(
+            format!("{} full", backend.as_str()),
+            |v: &Vec<Candidate>| decoded(v),
+            || detector.detect(image),
+        );
+        finds.add(read);
+    }
+}
+
+/// Every candidate `auto` finds in `image` at `effort` before the deadline of `log` (see
+/// the module doc).
+pub(crate) fn find_candidates(
+    image: &GrayImage,
+    effort: Effort,
+    log: &mut PassLog,
+) -> Vec<Candidate> {
+    let Some(&best) = auto_order().first() else {
+        return Vec::new();
+    };
+    let mut finds = Finds {
+        image,
+        found: Vec::new(),
+        regions: Vec::new(),
+        tried: Vec::new(),
+    };
+    find(&mut finds, effort, best, log);
+    if effort != Effort::Fast {
+        regions(&mut finds, best, log);
+    }
+    let small_frame = image.pixels().len() <= WHOLE_FRAME_MAX_PIXELS && !any_decoded(&finds.found);
+    if effort == Effort::Thorough || (effort == Effort::Balanced && small_frame) {
+        everything(&mut finds, best, log);
+    }
+    finds.found
 }

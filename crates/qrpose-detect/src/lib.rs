@@ -3,12 +3,11 @@
 //!
 //! - [`decode`]: bytes → [`decode::GrayImage`], with [`decode::DecodeLimits`].
 //! - Backends behind [`Detector`]: [`rqrr`] and [`rxing`] always; `zxing_cpp` with the
-//!   `zxing-cpp` cargo feature. [`DetectorChoice::Auto`] makes a quick pass first
-//!   (zxing-cpp's single read when built, else rxing on a half-scale copy of a large
-//!   image), then runs each backend at full resolution, best first, then second passes of
-//!   the best one on a contrast-stretched, inverted or double-scale copy, stopping as soon
-//!   as a code is read; results are merged by position. Symbols found but not read are
-//!   read again through their refined module grid ([`reread`]).
+//!   `zxing-cpp` cargo feature. [`DetectorChoice::Auto`] reads the whole frame once or twice
+//!   and then looks closer only where a finder-pattern triple was found but not read
+//!   ([`region`]), within a [`Budget`] (effort and deadline, [`budget`]); results are
+//!   merged by position. Symbols found but not read are read again through their refined
+//!   module grid ([`reread`]).
 //! - [`corners`]: sub-pixel corners and the twelve finder-pattern corners, whatever the
 //!   backend ([`profile`] measures single edges, [`homography`] maps the module grid).
 //!
@@ -28,6 +27,7 @@
 
 mod auto;
 mod backend;
+pub mod budget;
 pub mod contain;
 pub mod corners;
 pub mod decode;
@@ -38,6 +38,7 @@ pub mod homography;
 mod merge;
 pub mod pipeline;
 pub mod profile;
+pub mod region;
 pub mod reread;
 pub mod rqrr;
 pub mod rxing;
@@ -51,6 +52,7 @@ pub use auto::{
 pub use backend::{
     Backend, Candidate, DetectError, Detector, DetectorChoice, auto_order, detector_for,
 };
+pub use budget::{Budget, Effort, PassLog, PassReport};
 pub use filters::{downscale_half, invert, sharpen, stretch_contrast, upscale_double};
 pub use merge::merge_candidates;
 
@@ -79,15 +81,8 @@ impl DetectedCode {
     }
 }
 
-/// Every candidate the choice finds in `image`, before refinement.
-///
-/// `auto`: a quick pass first ([`HALF_SCALE_FIRST_MIN_SIDE_PX`], zxing-cpp's single read);
-/// then each backend in [`auto_order`] at full resolution; then second passes of the best
-/// one on front-end variants (see [`DENOISE_SIGMA_PX`], [`SHARPEN_SIGMA_PX`],
-/// [`UPSCALE_MAX_SIDE_PX`]). It stops after the first step that
-/// reads a code; undecoded symbols found on the way are kept. Every choice reads symbols
-/// that its backend found but could not decode again through their refined module grid
-/// ([`reread`]).
+/// Every candidate the choice finds in `image`, before refinement, at `balanced` effort with
+/// its default deadline.
 ///
 /// # Errors
 /// [`DetectError::BackendNotBuilt`] when a single backend is asked for that is not built.
@@ -95,26 +90,58 @@ pub fn find_candidates(
     image: &GrayImage,
     choice: DetectorChoice,
 ) -> Result<Vec<Candidate>, DetectError> {
+    let mut log = PassLog::new(Effort::Balanced.default_deadline(image.pixels().len()));
+    find_logged(image, choice, Effort::Balanced, &mut log)
+}
+
+/// The candidates of `choice` at `effort`, passes recorded in `log` (whose deadline bounds
+/// `auto`). A single backend runs one pass and reads what it found but could not decode
+/// again through the refined module grid ([`reread`]).
+fn find_logged(
+    image: &GrayImage,
+    choice: DetectorChoice,
+    effort: Effort,
+    log: &mut PassLog,
+) -> Result<Vec<Candidate>, DetectError> {
     match choice {
         DetectorChoice::Only(backend) => {
-            let mut found = detector_for(backend)?.detect(image);
+            let detector = detector_for(backend)?;
+            let mut found = log.run(
+                backend.as_str(),
+                |f: &Vec<Candidate>| f.iter().filter(|c| c.payload.is_some()).count(),
+                || detector.detect(image),
+            );
             reread_undecoded(image, &mut found, &mut Vec::new());
             Ok(found)
         }
-        DetectorChoice::Auto => auto::find_candidates(image),
+        DetectorChoice::Auto => Ok(auto::find_candidates(image, effort, log)),
     }
 }
 
-/// Finds, reads and refines every QR symbol in `image`.
+/// What one detection found, and how.
+#[derive(Debug, Clone)]
+pub struct Detection {
+    /// Every symbol, with refined corners.
+    pub codes: Vec<DetectedCode>,
+    /// The passes that ran, in order, and whether the deadline stopped further ones.
+    pub log: PassLog,
+}
+
+/// Finds, reads and refines every QR symbol in `image` within `budget`.
 ///
 /// # Errors
 /// [`DetectError::BackendNotBuilt`] when a single backend is asked for that is not built.
-pub fn detect_codes(
+pub fn detect_within(
     image: &GrayImage,
     choice: DetectorChoice,
-) -> Result<Vec<DetectedCode>, DetectError> {
-    let candidates = find_candidates(image, choice)?;
-    Ok(candidates
+    budget: &Budget,
+) -> Result<Detection, DetectError> {
+    let deadline = budget
+        .max_detect
+        .unwrap_or_else(|| budget.effort.default_deadline(image.pixels().len()));
+    let mut log = PassLog::new(deadline);
+    let candidates = find_logged(image, choice, budget.effort, &mut log)?;
+    let codes = candidates
         .into_iter()
         .map(|candidate| {
             let refinement = refine_corners(image, &candidate.corners_px, candidate.module_count);
@@ -123,7 +150,20 @@ pub fn detect_codes(
                 refinement,
             }
         })
-        .collect())
+        .collect();
+    Ok(Detection { codes, log })
+}
+
+/// Finds, reads and refines every QR symbol in `image` at `balanced` effort with its
+/// default deadline.
+///
+/// # Errors
+/// [`DetectError::BackendNotBuilt`] when a single backend is asked for that is not built.
+pub fn detect_codes(
+    image: &GrayImage,
+    choice: DetectorChoice,
+) -> Result<Vec<DetectedCode>, DetectError> {
+    detect_within(image, choice, &Budget::default()).map(|d| d.codes)
 }
 
 /// The README example, compiled and run as a doctest.

@@ -7,7 +7,9 @@
 //! place of the pose; it does not fail the other codes.
 
 use crate::finders::finder_marker_points;
-use crate::{DetectError, DetectedCode, DetectorChoice, decode::GrayImage, detect_codes};
+use crate::{
+    Budget, DetectError, DetectedCode, DetectorChoice, PassReport, decode::GrayImage, detect_within,
+};
 use qrpose_core::estimate::{
     EstimateError, PoseEstimate, ValidSolver, estimate_planar_points, estimate_pose,
 };
@@ -50,6 +52,8 @@ pub struct Options {
     pub detector: DetectorChoice,
     /// Which points to solve from.
     pub points: Points,
+    /// Effort and deadline of the detection.
+    pub budget: Budget,
 }
 
 /// Why one code has no pose.
@@ -88,6 +92,10 @@ pub struct Located {
     pub markers: Vec<LocatedMarker>,
     /// Detection, reading and corner refinement, ms.
     pub detect_ms: f64,
+    /// The detection passes that ran, in order.
+    pub passes: Vec<PassReport>,
+    /// The deadline stopped detection before every pass had run.
+    pub budget_exhausted: bool,
     /// Pose estimation of every code, ms.
     pub estimate_ms: f64,
 }
@@ -103,8 +111,9 @@ pub fn locate_markers(
     options: &Options,
 ) -> Result<Located, DetectError> {
     let started = Instant::now();
-    let codes = detect_codes(image, options.detector)?;
+    let detection = detect_within(image, options.detector, &options.budget)?;
     let detect_ms = ms_since(started);
+    let (codes, log) = (detection.codes, detection.log);
     let started = Instant::now();
     let markers = codes
         .into_iter()
@@ -122,6 +131,8 @@ pub fn locate_markers(
     Ok(Located {
         markers,
         detect_ms,
+        passes: log.passes,
+        budget_exhausted: log.budget_exhausted,
         estimate_ms: ms_since(started),
     })
 }

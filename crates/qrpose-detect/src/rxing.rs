@@ -13,13 +13,16 @@
 use super::decode::GrayImage;
 use super::{Backend, Candidate, Detector};
 use crate::contain::contain;
+use crate::region::Region;
 use qrpose_core::geometry::frames::PixelPoint;
 use rxing::common::cpp_essentials::concentric_finder::ConcentricPattern;
 use rxing::common::{
     BitArray, BitMatrix, DetectorRXingResult, GlobalHistogramBinarizer, LineOrientation,
 };
 use rxing::qrcode::cpp_port::decoder::Decode;
-use rxing::qrcode::cpp_port::detector::{FindFinderPatterns, GenerateFinderPatternSets, SampleQR};
+use rxing::qrcode::cpp_port::detector::{
+    FindFinderPatterns, FinderPatternSet, GenerateFinderPatternSets, SampleQR,
+};
 use rxing::{BarcodeFormat, Binarizer, Luma8Source, LuminanceSource, RXingResult};
 use std::borrow::Cow;
 
@@ -45,12 +48,16 @@ impl RxingDetector {
     }
 }
 
-fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Vec<Candidate> {
+/// What one read found: the symbols it decoded, and the regions of finder-pattern triples
+/// it could not read.
+type Read = (Vec<Candidate>, Vec<Region>);
+
+fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Read {
     let (Ok(w), Ok(h)) = (u32::try_from(image.width()), u32::try_from(image.height())) else {
-        return Vec::new();
+        return Read::default();
     };
     let Ok(source) = Luma8Source::new_with_slice(image.pixels(), w, h) else {
-        return Vec::new();
+        return Read::default();
     };
     if global_histogram {
         read(&GlobalHistogramBinarizer::new(source))
@@ -61,24 +68,29 @@ fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Vec<Candidate>
 
 /// rxing's multi-symbol QR read (`QrReader::decode_multiple_with_hints` with try-harder,
 /// QR codes only), step by step through rxing's public parts so that the sampled grid's
-/// size, the module count, is kept: the reader's own results drop it.
-fn read<B: Binarizer>(binarizer: &B) -> Vec<Candidate> {
+/// size, the module count, is kept: the reader's own results drop it. Triples that do not
+/// sample or decode are returned as [`Region`]s, where `auto` may look again.
+fn read<B: Binarizer>(binarizer: &B) -> Read {
     let Ok(binary) = binarizer.get_black_matrix() else {
-        return Vec::new();
+        return Read::default();
     };
     let mut patterns = FindFinderPatterns(binary, true, 0);
     let mut used: Vec<ConcentricPattern> = Vec::new();
     let mut found = Vec::new();
+    let mut unread = Vec::new();
     for set in GenerateFinderPatternSets(&mut patterns) {
         if [set.bl, set.tl, set.tr].iter().any(|p| used.contains(p)) {
             continue;
         }
-        let Ok(sampled) = SampleQR(binary, &set) else {
+        let decoded = SampleQR(binary, &set).ok().and_then(|sampled| {
+            Decode(sampled.getBits())
+                .ok()
+                .filter(|d| d.isValid())
+                .map(|d| (sampled, d))
+        });
+        let Some((sampled, decoded)) = decoded else {
+            unread.extend(region_of(&set));
             continue;
-        };
-        let decoded = match Decode(sampled.getBits()) {
-            Ok(d) if d.isValid() => d,
-            _ => continue,
         };
         used.extend([set.bl, set.tl, set.tr]);
         let module_count = usize::try_from(sampled.getBits().getWidth()).ok();
@@ -103,7 +115,14 @@ fn read<B: Binarizer>(binarizer: &B) -> Vec<Candidate> {
             backend: Backend::Rxing,
         });
     }
-    found
+    (found, unread)
+}
+
+/// The region of an unread finder-pattern triple.
+fn region_of(set: &FinderPatternSet) -> Option<Region> {
+    let centre = |p: &ConcentricPattern| PixelPoint::new(f64::from(p.p.x), f64::from(p.p.y));
+    let finder_px = f64::from(set.tl.size.max(set.tr.size).max(set.bl.size));
+    Region::from_finder_centres(centre(&set.tl), centre(&set.tr), centre(&set.bl), finder_px)
 }
 
 /// Side of the blocks of the local binariser, px.
@@ -315,6 +334,15 @@ impl Detector for RxingDetector {
     }
 
     fn detect(&self, image: &GrayImage) -> Vec<Candidate> {
+        self.detect_with_regions(image).0
+    }
+}
+
+impl RxingDetector {
+    /// The symbols read in `image`, and the regions of the finder-pattern triples that
+    /// could not be read (for `auto`'s further passes).
+    #[must_use]
+    pub fn detect_with_regions(&self, image: &GrayImage) -> (Vec<Candidate>, Vec<Region>) {
         contain(|| detect_unguarded(image, self.global_histogram)).unwrap_or_default()
     }
 }

@@ -26,17 +26,20 @@ pub mod query;
 pub mod response;
 
 pub use query::ImageQuery;
-pub use response::{ImageResponse, ImageSizeDto, MarkerResultDto, TimingDto};
+pub use response::{
+    ImageResponse, ImageSizeDto, ImageWarningDto, MarkerResultDto, PassDto, TimingDto,
+};
 
 use super::problem::{ErrorCode, Problem};
 use super::refusal::{problem_from_decode_error, problem_from_detect_error};
 use super::request::{CameraDto, CornersUnit, MarkerDto, SolverDto, pose_setup};
 use crate::detect::{
-    Backend, DetectorChoice, decode,
+    Backend, Budget, DetectorChoice, Effort, decode,
     pipeline::{Options, Points, Setup, locate_markers},
 };
 use crate::estimate::Method;
 use serde::{Deserialize, Serialize};
+use std::time::Duration;
 use std::time::Instant;
 use utoipa::ToSchema;
 
@@ -66,6 +69,54 @@ impl From<DetectorDto> for DetectorChoice {
             DetectorDto::Rqrr => DetectorChoice::Only(Backend::Rqrr),
             DetectorDto::Rxing => DetectorChoice::Only(Backend::Rxing),
             DetectorDto::ZxingCpp => DetectorChoice::Only(Backend::ZxingCpp),
+        }
+    }
+}
+
+/// How hard detection looks (see `max_detect_ms` for the deadline).
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum EffortDto {
+    /// One read of the frame at full resolution; cheapest.
+    Fast,
+    /// Full-resolution and half-scale reads, then more passes only where a finder-pattern
+    /// triple was found but not read (default).
+    #[default]
+    Balanced,
+    /// As balanced, then every detector and image variant on the whole frame.
+    Thorough,
+}
+
+impl From<EffortDto> for Effort {
+    fn from(e: EffortDto) -> Self {
+        match e {
+            EffortDto::Fast => Effort::Fast,
+            EffortDto::Balanced => Effort::Balanced,
+            EffortDto::Thorough => Effort::Thorough,
+        }
+    }
+}
+
+/// Limits of the image path that the server (or the CLI) sets, not the request.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImageLimits {
+    /// Encoded size and pixel count.
+    pub decode: decode::DecodeLimits,
+    /// The largest detection deadline a request may ask for, ms; also the cap of the
+    /// effort's default deadline.
+    pub max_detect_ms: f64,
+}
+
+/// The default cap of `max_detect_ms`, ms (`qrpose serve --max-detect-ms`).
+pub const DEFAULT_MAX_DETECT_MS: f64 = 5000.0;
+
+impl Default for ImageLimits {
+    fn default() -> Self {
+        Self {
+            decode: decode::DecodeLimits::default(),
+            max_detect_ms: DEFAULT_MAX_DETECT_MS,
         }
     }
 }
@@ -122,6 +173,15 @@ pub struct ImageRequest {
     /// Points to solve from (default `corners`; `finders` needs `reprojection`).
     #[serde(default)]
     pub points: Option<PointsDto>,
+    /// How hard detection looks: `fast`, `balanced` (default) or `thorough`.
+    #[serde(default)]
+    pub effort: EffortDto,
+    /// Detection deadline, ms (> 0): no detection pass starts after it, and the response
+    /// carries the warning `detection_budget_exhausted` when one was skipped. Default: the
+    /// effort's own, which grows with the image (about 85 ms for 1920 × 1080 at
+    /// `balanced`); at most the server's `--max-detect-ms`.
+    #[schema(example = 100.0, exclusive_minimum = 0.0)]
+    pub max_detect_ms: Option<f64>,
 }
 
 /// A validated image request: what [`locate_markers`] takes.
@@ -138,13 +198,14 @@ pub struct ValidImageRequest {
 pub const DEFAULT_POINTS: PointsDto = PointsDto::Corners;
 
 impl ImageRequest {
-    /// Validates the request (before any image is decoded).
+    /// Validates the request (before any image is decoded); `max_detect_ms` caps the
+    /// detection deadline.
     ///
     /// # Errors
     /// The corners request's camera / marker / solver problems; `detector_unavailable` for
     /// a backend not in this build; `points_need_reprojection` for `finders` with another
-    /// method.
-    pub fn validate(&self) -> Result<ValidImageRequest, Problem> {
+    /// method; `invalid_detection_budget` for a `max_detect_ms` that is not positive.
+    pub fn validate(&self, max_detect_ms: f64) -> Result<ValidImageRequest, Problem> {
         let setup = pose_setup(&self.camera, &self.marker, &self.solver, CornersUnit::Px)?;
         let detector: DetectorChoice = self.detector.into();
         if let DetectorChoice::Only(backend) = detector
@@ -181,7 +242,33 @@ impl ImageRequest {
             options: Options {
                 detector,
                 points: points.into(),
+                budget: self.budget(max_detect_ms)?,
             },
+        })
+    }
+}
+
+impl ImageRequest {
+    /// The detection budget: the effort, and the deadline asked for (or the effort's default
+    /// for the image, decided once its size is known) capped at `cap_ms`.
+    fn budget(&self, cap_ms: f64) -> Result<Budget, Problem> {
+        let cap = Duration::from_secs_f64(cap_ms.max(0.0) / 1e3);
+        let max_detect = match self.max_detect_ms {
+            None => None,
+            Some(ms) if ms.is_finite() && ms > 0.0 => {
+                Some(Duration::from_secs_f64(ms.min(cap_ms) / 1e3))
+            }
+            Some(ms) => {
+                return Err(Problem::new(
+                    ErrorCode::InvalidDetectionBudget,
+                    format!("max_detect_ms must be a positive number of milliseconds, got {ms}"),
+                )
+                .with_field("/max_detect_ms"));
+            }
+        };
+        Ok(Budget {
+            effort: self.effort.into(),
+            max_detect: max_detect.or(Some(cap)),
         })
     }
 }
@@ -197,12 +284,23 @@ impl ImageRequest {
 pub fn estimate_image(
     bytes: &[u8],
     request: &ImageRequest,
-    limits: &decode::DecodeLimits,
+    limits: &ImageLimits,
 ) -> Result<ImageResponse, Problem> {
-    let valid = request.validate()?;
+    let mut valid = request.validate(limits.max_detect_ms)?;
     let started = Instant::now();
-    let image = decode::decode_gray(bytes, limits).map_err(|e| problem_from_decode_error(&e))?;
+    let image =
+        decode::decode_gray(bytes, &limits.decode).map_err(|e| problem_from_decode_error(&e))?;
     let decode_ms = started.elapsed().as_secs_f64() * 1e3;
+    if request.max_detect_ms.is_none() {
+        // The effort's default deadline for this image, within the cap.
+        let default = valid
+            .options
+            .budget
+            .effort
+            .default_deadline(image.pixels().len());
+        valid.options.budget.max_detect =
+            valid.options.budget.max_detect.map(|cap| cap.min(default));
+    }
     let located = locate_markers(&image, &valid.setup, &valid.options)
         .map_err(|e| problem_from_detect_error(&e))?;
     let size = ImageSizeDto {
@@ -220,7 +318,7 @@ pub fn estimate_image(
 pub fn estimate_image_from_query(
     bytes: &[u8],
     query: ImageQuery,
-    limits: &decode::DecodeLimits,
+    limits: &ImageLimits,
 ) -> Result<ImageResponse, Problem> {
     query
         .into_request()

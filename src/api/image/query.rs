@@ -7,7 +7,7 @@
 //! problem's `field`, a JSON pointer there (`/camera/fx_px`), is then renamed to the
 //! parameter the client wrote (`fx_px`) by [`ImageQuery::problem_in_query_terms`].
 
-use super::{DetectorDto, ImageRequest, PointsDto};
+use super::{DetectorDto, EffortDto, ImageRequest, PointsDto};
 use crate::api::problem::{ErrorCode, Problem};
 use crate::api::request::{CameraDto, DistortionDto, MarkerDto, MethodDto, SolverDto};
 use serde::{Deserialize, Serialize};
@@ -83,6 +83,12 @@ pub struct ImageQuery {
     /// Corner noise σ for the covariance, px.
     #[arg(long, allow_negative_numbers = true)]
     pub corner_sigma_px: Option<f64>,
+    /// Detection effort: `fast`, `balanced` (default) or `thorough`.
+    #[arg(long, value_enum)]
+    pub effort: Option<EffortDto>,
+    /// Detection deadline, ms (> 0; default the effort's own, capped by the server).
+    #[arg(long, allow_negative_numbers = true)]
+    pub max_detect_ms: Option<f64>,
 }
 
 /// The JSON pointer of the marker size, the one parameter whose name is not the last
@@ -134,6 +140,8 @@ impl ImageQuery {
             },
             detector: self.detector.unwrap_or_default(),
             points: self.points,
+            effort: self.effort.unwrap_or_default(),
+            max_detect_ms: self.max_detect_ms,
         })
     }
 
@@ -201,6 +209,8 @@ mod tests {
             max_iterations: Some(1),
             trace: Some(true),
             corner_sigma_px: Some(1.0),
+            effort: Some(EffortDto::Fast),
+            max_detect_ms: Some(10.0),
         }
     }
 

@@ -3,7 +3,7 @@
 
 use super::PointsDto;
 use crate::api::problem::Problem;
-use crate::api::refusal::problem_from_marker_error;
+use crate::api::refusal::marker_pose_or_problem;
 use crate::api::response::PoseResponse;
 use crate::detect::{
     corners::RefineStatus,
@@ -24,7 +24,7 @@ pub struct ImageSizeDto {
 }
 
 /// Time per stage, ms.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct TimingDto {
     /// Image decoding, ms.
     pub decode: f64,
@@ -32,6 +32,31 @@ pub struct TimingDto {
     pub detect: f64,
     /// Pose estimation of every marker, ms.
     pub estimate: f64,
+    /// The detection passes that ran, in order (part of `detect`).
+    pub detect_passes: Vec<PassDto>,
+}
+
+/// One detection pass.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PassDto {
+    /// What ran: `rxing full`, `rxing half`, `zxing-cpp full`, `region K VARIANT` (a crop
+    /// around the K-th unread finder-pattern triple), `whole VARIANT` (`thorough`), or the
+    /// single detector asked for.
+    #[schema(example = "rxing full")]
+    pub pass: String,
+    /// Its time, ms.
+    pub ms: f64,
+    /// Symbols it decoded.
+    pub decoded: usize,
+}
+
+/// A condition of the whole image response.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ImageWarningDto {
+    /// The detection deadline (`max_detect_ms`, or the effort's default) passed before
+    /// every pass had run: codes may have been missed. Raise `max_detect_ms` or `effort`.
+    DetectionBudgetExhausted,
 }
 
 /// One QR code found in the image.
@@ -79,6 +104,8 @@ pub struct ImageResponse {
     pub image: ImageSizeDto,
     /// Every QR code found (empty when none).
     pub markers: Vec<MarkerResultDto>,
+    /// Conditions of the whole response; empty when there are none.
+    pub warnings: Vec<ImageWarningDto>,
     /// Time per stage, ms.
     pub timing_ms: TimingDto,
 }
@@ -90,18 +117,14 @@ fn pairs<const K: usize>(points: &[PixelPoint; K]) -> [[f64; 2]; K] {
 impl MarkerResultDto {
     /// The wire form of marker `index` of a photo.
     pub fn new(located: &LocatedMarker, index: usize, setup: &Setup) -> Self {
-        let (pose, problem) = match &located.pose {
-            Ok(e) => (
-                Some(PoseResponse::new(
-                    e,
-                    &setup.camera,
-                    &setup.marker,
-                    located.estimate_us,
-                )),
-                None,
-            ),
-            Err(err) => (None, Some(problem_from_marker_error(*err, index))),
-        };
+        let (pose, problem) = marker_pose_or_problem(
+            &located.pose,
+            located.points_used,
+            &setup.camera,
+            &setup.marker,
+            located.estimate_us,
+            index,
+        );
         let code = &located.code;
         let c = &code.candidate;
         Self {
@@ -139,10 +162,24 @@ impl ImageResponse {
                 .enumerate()
                 .map(|(index, m)| MarkerResultDto::new(m, index, setup))
                 .collect(),
+            warnings: if located.budget_exhausted {
+                vec![ImageWarningDto::DetectionBudgetExhausted]
+            } else {
+                Vec::new()
+            },
             timing_ms: TimingDto {
                 decode: decode_ms,
                 detect: located.detect_ms,
                 estimate: located.estimate_ms,
+                detect_passes: located
+                    .passes
+                    .iter()
+                    .map(|p| PassDto {
+                        pass: p.name.clone(),
+                        ms: p.ms,
+                        decoded: p.decoded,
+                    })
+                    .collect(),
             },
         }
     }

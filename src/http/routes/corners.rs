@@ -6,6 +6,7 @@ use crate::api::{
     request::CornersRequest,
     response::PoseResponse,
 };
+use crate::detect::contain::contain;
 use crate::http::{
     error::ApiError,
     extract::{JsonBody, JsonBytes},
@@ -51,7 +52,9 @@ use axum::extract::State;
             `corner_count`, `duplicate_corners`, `collinear_corners`, \
             `self_intersecting_corners`, `non_convex_corners`, `mirrored_corners`, \
             `incomplete_camera`, `invalid_camera_parameter`, `undistortion_failed`, \
-            `invalid_marker_size`, `solver_parameter_out_of_range`, `no_solution`.",
+            `invalid_marker_size`, `solver_parameter_out_of_range`, `no_solution`, \
+            `numerically_degenerate` (magnitudes such as corners at 1e150 px, beyond double \
+            precision: no number of a 200 is ever NaN, infinite or a null in its place).",
             body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:qrpose:problem:duplicate_corners",
                 "title": "Duplicate corners", "status": 422,
@@ -75,15 +78,65 @@ pub async fn pose_from_corners(
     State(state): State<AppState>,
     JsonBody(body): JsonBody,
 ) -> Result<JsonBytes, ApiError> {
-    let (json, outcome) = state.queue.run(move || estimate_to_json(&body)).await??;
+    let (json, outcome) = match inline_request(&state, &body)? {
+        Some(request) => contained(|| estimate_to_json(&request))??,
+        None => {
+            state
+                .queue
+                .run(move || {
+                    let request = parse_json::<CornersRequest>(&body)?;
+                    estimate_to_json(&request)
+                })
+                .await??
+        }
+    };
     state.metrics.observe_estimate(outcome);
     Ok(JsonBytes(json))
 }
 
-/// Parses, estimates and serialises, all on the estimation worker.
-fn estimate_to_json(body: &[u8]) -> Result<(Vec<u8>, PoseOutcome), ApiError> {
-    let request = parse_json::<CornersRequest>(body)?;
-    let response = estimate_corners(&request)?;
+/// Bodies up to this size may be parsed on the async thread (a few µs); larger ones, which
+/// only padding or a long unknown field can make, are parsed on an estimation worker.
+pub const INLINE_MAX_BODY_BYTES: usize = 16 * 1024;
+
+/// Estimates with at most this many iterations and no trace may run on the async thread.
+/// Measured at the limit: 35 µs for `paper` running all 1000 iterations (`docs/service.md`,
+/// "Saturation").
+pub const INLINE_MAX_ITERATIONS: u64 = 1000;
+
+/// The request to estimate right here, on the async thread, instead of behind the
+/// estimation queue: only when the queue has no free place (so that corners requests are
+/// answered while image jobs fill every worker and waiting place) and the estimate is short
+/// ([`runs_inline`]). Otherwise `None`: the request goes to the queue, which on this 2-core
+/// machine costs less CPU per request than running inline (`docs/service.md`, "Load test":
+/// the workers keep the estimator's code and data in their caches, the async threads the
+/// network's).
+///
+/// # Errors
+/// The request's parse problem, when it was parsed here.
+fn inline_request(state: &AppState, body: &[u8]) -> Result<Option<CornersRequest>, ApiError> {
+    let o = state.queue.occupancy();
+    if o.running + o.waiting < o.capacity || body.len() > INLINE_MAX_BODY_BYTES {
+        return Ok(None);
+    }
+    let request = contained(|| parse_json::<CornersRequest>(body))??;
+    Ok(runs_inline(&request).then_some(request))
+}
+
+/// Whether a parsed request's estimate is short enough to run on an async thread: at most
+/// [`INLINE_MAX_ITERATIONS`] and no trace to serialise. Long ones (up to 10 000 iterations)
+/// always go to the workers, so that no request blocks an async thread for long.
+pub fn runs_inline(request: &CornersRequest) -> bool {
+    request.solver.max_iterations <= INLINE_MAX_ITERATIONS && !request.solver.trace
+}
+
+/// Runs `f` with panics contained: a panic is a 500 `internal` (logged), as on a worker.
+fn contained<T>(f: impl FnOnce() -> T) -> Result<T, ApiError> {
+    contain(f).map_err(|panic| ApiError::internal(format!("estimation panicked: {panic}")))
+}
+
+/// Estimates and serialises.
+fn estimate_to_json(request: &CornersRequest) -> Result<(Vec<u8>, PoseOutcome), ApiError> {
+    let response = estimate_corners(request)?;
     let json = serde_json::to_vec(&response).map_err(ApiError::internal)?;
     Ok((json, PoseOutcome::from(&response)))
 }

@@ -4,7 +4,10 @@
 //! `/v1/pose/corners`.
 
 use crate::api::{
-    image::{ImageQuery, ImageRequest, ImageResponse, estimate_image, estimate_image_from_query},
+    image::{
+        ImageLimits, ImageQuery, ImageRequest, ImageResponse, estimate_image,
+        estimate_image_from_query,
+    },
     problem::{Problem, parse_json},
 };
 use crate::detect::decode::DecodeLimits;
@@ -138,9 +141,12 @@ pub async fn pose_from_image(
     State(state): State<AppState>,
     input: ImageInput,
 ) -> Result<JsonBytes, ApiError> {
-    let limits = DecodeLimits {
-        max_encoded_bytes: state.settings.body_limit_bytes,
-        max_pixels: state.settings.max_image_pixels,
+    let limits = ImageLimits {
+        decode: DecodeLimits {
+            max_encoded_bytes: state.settings.body_limit_bytes,
+            max_pixels: state.settings.max_image_pixels,
+        },
+        max_detect_ms: state.settings.max_detect.as_secs_f64() * 1e3,
     };
     let (json, outcome) = state
         .queue
@@ -163,7 +169,7 @@ struct Outcome {
 /// the estimation worker.
 fn estimate_to_json(
     input: ImageInput,
-    limits: &DecodeLimits,
+    limits: &ImageLimits,
 ) -> Result<(Vec<u8>, Outcome), ApiError> {
     let response: ImageResponse = match input {
         ImageInput::Raw { image, query } => estimate_image_from_query(&image, *query, limits)?,

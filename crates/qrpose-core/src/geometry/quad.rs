@@ -6,7 +6,11 @@
 //! unique pose), a self-intersecting or non-convex outline (corners swapped or misdetected),
 //! and a mirrored outline (the corner order is reversed, or the marker would be seen from
 //! behind). Tolerances are relative to the quadrilateral's size, so they hold in pixels and
-//! in image-plane millimetres alike.
+//! in image-plane millimetres alike, and the checks run on the corners divided by their
+//! largest coordinate magnitude, so that no finite input overflows or underflows them:
+//! corners at 1e200 px form a square like corners at 100 px do, never a "duplicate" because
+//! a distance overflowed. (Whether a solver can work at that scale is for the caller to
+//! find out from its results.)
 
 use super::frames::PixelPoint;
 use super::marker::CornerOrder;
@@ -80,6 +84,18 @@ fn segments_cross(a: &PixelPoint, b: &PixelPoint, c: &PixelPoint, d: &PixelPoint
     d1 * d2 < 0.0 && d3 * d4 < 0.0
 }
 
+/// `paper` divided by its largest coordinate magnitude (so every coordinate is in
+/// [−1, 1]), or `None` when every coordinate is zero. Distances between the results are at
+/// most 2√2 and twice-areas at most 8: nothing overflows, and relative tolerances mean the
+/// same at any scale.
+fn normalised(paper: &[PixelPoint; 4]) -> Option<[PixelPoint; 4]> {
+    let largest = paper
+        .iter()
+        .flat_map(|p| [p.u().abs(), p.v().abs()])
+        .fold(0.0, f64::max);
+    (largest > 0.0).then(|| paper.map(|p| PixelPoint::new(p.u() / largest, p.v() / largest)))
+}
+
 impl ImageQuad {
     /// Validates four corners listed in `order`.
     ///
@@ -93,8 +109,12 @@ impl ImageQuad {
                 return Err(QuadError::NonFinite { index: input(i) });
             }
         }
-        let dist = |a: usize, b: usize| (paper[a].0 - paper[b].0).norm();
         let pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
+        let Some(unit) = normalised(&paper) else {
+            let (first, second) = (input(0).min(input(1)), input(0).max(input(1)));
+            return Err(QuadError::Duplicate { first, second });
+        };
+        let dist = |a: usize, b: usize| (unit[a].0 - unit[b].0).norm();
         let scale = pairs.iter().map(|&(a, b)| dist(a, b)).fold(0.0, f64::max);
         for &(a, b) in &pairs {
             if dist(a, b) <= DUPLICATE_REL_TOL * scale {
@@ -109,20 +129,20 @@ impl ImageQuad {
                 2 => [0, 1, 3],
                 _ => [0, 1, 2],
             };
-            if cross(&paper[a], &paper[b], &paper[c]).abs() <= COLLINEAR_REL_TOL * scale * scale {
+            if cross(&unit[a], &unit[b], &unit[c]).abs() <= COLLINEAR_REL_TOL * scale * scale {
                 let mut indices = [input(a), input(b), input(c)];
                 indices.sort_unstable();
                 return Err(QuadError::Collinear { indices });
             }
         }
-        if segments_cross(&paper[0], &paper[1], &paper[2], &paper[3])
-            || segments_cross(&paper[1], &paper[2], &paper[3], &paper[0])
+        if segments_cross(&unit[0], &unit[1], &unit[2], &unit[3])
+            || segments_cross(&unit[1], &unit[2], &unit[3], &unit[0])
         {
             return Err(QuadError::SelfIntersecting);
         }
         // Turn at each corner of the cycle P1 → P2 → P3 → P4: negative = clockwise on screen.
         let turns: [f64; 4] =
-            [0, 1, 2, 3].map(|i| cross(&paper[(i + 3) % 4], &paper[i], &paper[(i + 1) % 4]));
+            [0, 1, 2, 3].map(|i| cross(&unit[(i + 3) % 4], &unit[i], &unit[(i + 1) % 4]));
         let clockwise = turns.iter().filter(|t| **t < 0.0).count();
         match clockwise {
             4 => Ok(Self { paper, order }),
@@ -221,6 +241,53 @@ mod tests {
         let mut c = SQUARE;
         c[2] = (130.0, 130.0);
         assert_eq!(qr(c), Err(QuadError::NonConvex { index: 2 }));
+    }
+
+    #[test]
+    fn validation_is_the_same_at_any_finite_scale() {
+        // A square, a collinear triple and a duplicate, from 1e-300 to 1e300: distances at
+        // 1e200 overflow and at 1e-200 underflow unless the corners are normalised first.
+        let collinear = [(0.0, 0.0), (1.0, 0.0), (2.0, 0.0), (0.0, 1.0)];
+        let mut duplicate = SQUARE;
+        duplicate[3] = duplicate[1];
+        for exponent in [-300, -200, -150, -10, 0, 10, 150, 200, 300, 305] {
+            let s = 10f64.powi(exponent);
+            let scaled = |c: [(f64, f64); 4]| c.map(|(u, v)| (u * s, v * s));
+            assert!(qr(scaled(SQUARE)).is_ok(), "square at 1e{exponent}");
+            let negative = scaled(SQUARE).map(|(u, v)| (u - 2.0 * s * 100.0, v));
+            assert!(qr(negative).is_ok(), "shifted square at 1e{exponent}");
+            assert_eq!(
+                qr(scaled(collinear)),
+                Err(QuadError::Collinear { indices: [0, 1, 2] }),
+                "1e{exponent}"
+            );
+            assert_eq!(
+                qr(scaled(duplicate)),
+                Err(QuadError::Duplicate {
+                    first: 1,
+                    second: 3
+                }),
+                "1e{exponent}"
+            );
+        }
+        // The example: overflow was reported as "corners 1 and 2 coincide".
+        let huge = [(0.0, 0.0), (1e200, 0.0), (1e200, 1e200), (0.0, 1e200)];
+        assert!(qr(huge).is_ok());
+        let largest = [
+            (-f64::MAX, -f64::MAX),
+            (f64::MAX, -f64::MAX),
+            (f64::MAX, f64::MAX),
+            (-f64::MAX, f64::MAX),
+        ];
+        assert!(qr(largest).is_ok());
+        assert_eq!(
+            qr([(0.0, 0.0); 4]),
+            Err(QuadError::Duplicate {
+                first: 1,
+                second: 2
+            }),
+            "paper corners P1 and P2, as before"
+        );
     }
 
     #[test]

@@ -1,0 +1,270 @@
+//! Where a symbol may be: [`Region`]s, the places of finder-pattern triples that a pass found
+//! but could not read, and [`Crop`]s, the small images that `auto` spends further effort on
+//! instead of the whole frame.
+//!
+//! A region is the bounding box of a triple's three finder-pattern centres and the fourth
+//! corner of their parallelogram, widened by one finder pattern (7 modules) on each side so
+//! that the whole symbol is inside. Regions that overlap a symbol already read, or another
+//! region, are dropped ([`unread_regions`]).
+
+// Pixel indices are floats clamped into the image before the cast.
+#![allow(clippy::cast_possible_truncation)]
+
+use crate::Candidate;
+use crate::gray::GrayImage;
+use qrpose_core::geometry::frames::PixelPoint;
+
+/// An axis-aligned box of the image where a symbol may be, px.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Region {
+    /// Left edge, px.
+    pub lo_u: f64,
+    /// Top edge, px.
+    pub lo_v: f64,
+    /// Right edge, px.
+    pub hi_u: f64,
+    /// Bottom edge, px.
+    pub hi_v: f64,
+}
+
+/// At most this many unread regions get further effort in one image: clutter can produce
+/// dozens of finder-like triples, and each costs a few crop passes.
+pub const MAX_REGIONS: usize = 16;
+
+impl Region {
+    /// The region of a finder-pattern triple: centres `tl`, `tr`, `bl` (px) and the finder
+    /// patterns' size `finder_px` (7 modules).
+    #[must_use]
+    pub fn from_finder_centres(
+        tl: PixelPoint,
+        tr: PixelPoint,
+        bl: PixelPoint,
+        finder_px: f64,
+    ) -> Option<Self> {
+        let br = PixelPoint::new(tr.u() + bl.u() - tl.u(), tr.v() + bl.v() - tl.v());
+        Self::around(&[tl, tr, br, bl], finder_px)
+    }
+
+    /// The bounding box of `points` widened by `margin_px` on every side.
+    #[must_use]
+    pub fn around(points: &[PixelPoint], margin_px: f64) -> Option<Self> {
+        let mut r = Self {
+            lo_u: f64::INFINITY,
+            lo_v: f64::INFINITY,
+            hi_u: f64::NEG_INFINITY,
+            hi_v: f64::NEG_INFINITY,
+        };
+        for p in points {
+            r.lo_u = r.lo_u.min(p.u() - margin_px);
+            r.lo_v = r.lo_v.min(p.v() - margin_px);
+            r.hi_u = r.hi_u.max(p.u() + margin_px);
+            r.hi_v = r.hi_v.max(p.v() + margin_px);
+        }
+        let finite = [r.lo_u, r.lo_v, r.hi_u, r.hi_v]
+            .iter()
+            .all(|x| x.is_finite());
+        (finite && r.hi_u > r.lo_u && r.hi_v > r.lo_v).then_some(r)
+    }
+
+    /// The same region in the source image of a copy scaled by `scale` source px per copy px
+    /// (pixel centres scale about −0.5).
+    #[must_use]
+    pub fn rescaled(self, scale: f64) -> Self {
+        let s = |x: f64| (x + 0.5) * scale - 0.5;
+        Self {
+            lo_u: s(self.lo_u),
+            lo_v: s(self.lo_v),
+            hi_u: s(self.hi_u),
+            hi_v: s(self.hi_v),
+        }
+    }
+
+    fn area(&self) -> f64 {
+        (self.hi_u - self.lo_u) * (self.hi_v - self.lo_v)
+    }
+
+    /// Area of the intersection over the area of the smaller box, in [0, 1].
+    fn overlap(&self, other: &Self) -> f64 {
+        let w = self.hi_u.min(other.hi_u) - self.lo_u.max(other.lo_u);
+        let h = self.hi_v.min(other.hi_v) - self.lo_v.max(other.lo_v);
+        if w <= 0.0 || h <= 0.0 {
+            return 0.0;
+        }
+        w * h / self.area().min(other.area())
+    }
+
+    fn contains(&self, p: &PixelPoint) -> bool {
+        (self.lo_u..=self.hi_u).contains(&p.u()) && (self.lo_v..=self.hi_v).contains(&p.v())
+    }
+}
+
+/// Two regions (or a region and a read symbol) overlapping by more than this share of the
+/// smaller are the same place.
+const SAME_PLACE_OVERLAP: f64 = 0.5;
+
+/// The regions worth more effort: not on a symbol already read (`found`, decoded ones),
+/// and one per place, largest first, at most [`MAX_REGIONS`].
+#[must_use]
+pub fn unread_regions(mut regions: Vec<Region>, found: &[Candidate]) -> Vec<Region> {
+    regions.sort_by(|a, b| b.area().total_cmp(&a.area()));
+    let read: Vec<Region> = found
+        .iter()
+        .filter(|c| c.payload.is_some())
+        .filter_map(|c| Region::around(&c.corners_px, 0.0))
+        .collect();
+    let mut kept: Vec<Region> = Vec::new();
+    for r in regions {
+        let centre = PixelPoint::new(0.5 * (r.lo_u + r.hi_u), 0.5 * (r.lo_v + r.hi_v));
+        let on_read = read
+            .iter()
+            .any(|s| s.contains(&centre) || s.overlap(&r) > SAME_PLACE_OVERLAP);
+        let seen = kept.iter().any(|k| k.overlap(&r) > SAME_PLACE_OVERLAP);
+        if !on_read && !seen {
+            kept.push(r);
+            if kept.len() == MAX_REGIONS {
+                break;
+            }
+        }
+    }
+    kept
+}
+
+/// A share of a box's longer side added on each side of a crop, for the quiet zone and the
+/// error of a rough position.
+const CROP_MARGIN_SHARE: f64 = 0.25;
+/// Fixed extra margin of a crop, px.
+const CROP_MARGIN_PX: f64 = 8.0;
+
+/// A rectangle of an image, copied out, with its offset in the source.
+pub struct Crop {
+    /// The pixels; `None` when the rectangle is empty.
+    pub image: Option<GrayImage>,
+    x0: usize,
+    y0: usize,
+}
+
+impl Crop {
+    /// The bounding box of `corners_px` widened by the crop margins, clamped to the image.
+    #[must_use]
+    pub fn around(image: &GrayImage, corners_px: &[PixelPoint; 4]) -> Option<Self> {
+        Self::of_region(image, &Region::around(corners_px, 0.0)?)
+    }
+
+    /// `region` widened by the crop margins, clamped to the image.
+    #[must_use]
+    pub fn of_region(image: &GrayImage, region: &Region) -> Option<Self> {
+        let margin = CROP_MARGIN_SHARE * (region.hi_u - region.lo_u).max(region.hi_v - region.lo_v)
+            + CROP_MARGIN_PX;
+        let max_u = (image.width() - 1) as f64;
+        let max_v = (image.height() - 1) as f64;
+        let x0 = (region.lo_u - margin).clamp(0.0, max_u).floor() as usize;
+        let y0 = (region.lo_v - margin).clamp(0.0, max_v).floor() as usize;
+        let x1 = (region.hi_u + margin).clamp(0.0, max_u).ceil() as usize;
+        let y1 = (region.hi_v + margin).clamp(0.0, max_v).ceil() as usize;
+        let (w, h) = (x1.checked_sub(x0)? + 1, y1.checked_sub(y0)? + 1);
+        let mut pixels = Vec::with_capacity(w * h);
+        for row in image.pixels().chunks_exact(image.width()).skip(y0).take(h) {
+            pixels.extend_from_slice(row.get(x0..x0 + w)?);
+        }
+        Some(Self {
+            image: GrayImage::new(w, h, pixels),
+            x0,
+            y0,
+        })
+    }
+
+    /// A candidate found in the crop, in source pixels.
+    #[must_use]
+    pub fn to_source(&self, mut c: Candidate) -> Candidate {
+        let (dx, dy) = (self.x0 as f64, self.y0 as f64);
+        c.corners_px = c
+            .corners_px
+            .map(|p| PixelPoint::new(p.u() + dx, p.v() + dy));
+        c
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Backend;
+
+    fn decoded_at(lo: f64, hi: f64) -> Candidate {
+        Candidate {
+            corners_px: [
+                PixelPoint::new(lo, lo),
+                PixelPoint::new(hi, lo),
+                PixelPoint::new(hi, hi),
+                PixelPoint::new(lo, hi),
+            ],
+            payload: Some(b"x".to_vec()),
+            text: Some("x".to_owned()),
+            module_count: Some(21),
+            backend: Backend::Rxing,
+        }
+    }
+
+    #[test]
+    fn a_triple_region_covers_the_whole_symbol() {
+        // Finder centres 3.5 modules in from the corners of a 21-module symbol of 4 px
+        // modules at (100, 100): the symbol spans 100..184.
+        let (m, o) = (4.0, 100.0);
+        let c = |col: f64, row: f64| PixelPoint::new(o + col * m, o + row * m);
+        let r = Region::from_finder_centres(c(3.5, 3.5), c(17.5, 3.5), c(3.5, 17.5), 7.0 * m)
+            .expect("a region");
+        assert!(r.lo_u <= o && r.lo_v <= o && r.hi_u >= o + 84.0 && r.hi_v >= o + 84.0);
+    }
+
+    #[test]
+    fn regions_on_read_symbols_and_duplicates_are_dropped() {
+        let region = |lo: f64, hi: f64| Region {
+            lo_u: lo,
+            lo_v: lo,
+            hi_u: hi,
+            hi_v: hi,
+        };
+        let regions = vec![
+            region(0.0, 100.0),   // on the read symbol
+            region(300.0, 400.0), // unread
+            region(310.0, 405.0), // the same place again
+            region(600.0, 650.0), // unread, smaller
+        ];
+        let kept = unread_regions(regions, &[decoded_at(10.0, 90.0)]);
+        assert_eq!(kept, vec![region(300.0, 400.0), region(600.0, 650.0)]);
+    }
+
+    #[test]
+    fn at_most_max_regions_are_kept() {
+        let regions = (0..40)
+            .map(|k| {
+                let lo = f64::from(k) * 100.0;
+                Region {
+                    lo_u: lo,
+                    lo_v: 0.0,
+                    hi_u: lo + 50.0,
+                    hi_v: 50.0,
+                }
+            })
+            .collect();
+        assert_eq!(unread_regions(regions, &[]).len(), MAX_REGIONS);
+    }
+
+    #[test]
+    fn a_crop_maps_its_finds_back_to_the_source() {
+        let image = GrayImage::new(200, 100, vec![128; 200 * 100]).expect("an image");
+        let crop = Crop::of_region(
+            &image,
+            &Region {
+                lo_u: 50.0,
+                lo_v: 40.0,
+                hi_u: 90.0,
+                hi_v: 60.0,
+            },
+        )
+        .expect("inside");
+        let small = crop.image.as_ref().expect("pixels");
+        assert!(small.width() < 200 && small.height() <= 100);
+        let found = crop.to_source(decoded_at(0.0, 10.0));
+        assert!(found.corners_px[0].u() >= 0.0 && found.corners_px[0].u() <= 50.0);
+    }
+}

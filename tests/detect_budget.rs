@@ -1,0 +1,194 @@
+//! `auto`'s budget (issue 12): every code of a frame with several, one cheap pass pair on a
+//! frame with none, `effort` and `max_detect_ms` through the image request, and the warning
+//! when the deadline cuts detection short.
+
+use nalgebra::Vector3;
+use qrpose::api::image::{ImageLimits, ImageRequest, ImageWarningDto, estimate_image};
+use qrpose::api::problem::ErrorCode;
+use qrpose::detect::{Budget, DetectorChoice, Effort, decode::GrayImage, detect_within};
+use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
+use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
+use serde_json::json;
+use std::time::Duration;
+
+/// A 1280 × 720 frame with three codes side by side, pasted from three renders (each
+/// 400 × 400, a 40 mm code at 0.3-0.4 m, mildly blurred), and its JPEG.
+fn three_codes() -> (GrayImage, Vec<u8>) {
+    let (w, h) = (1280usize, 720usize);
+    let mut canvas = vec![235u8; w * h];
+    for (k, (payload, z_mm)) in [("SHELF-A", 300.0), ("SHELF-B", 350.0), ("SHELF-C", 400.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let marker = Marker::try_new(40.0).expect("valid size");
+        let scene = Scene {
+            payload: payload.as_bytes().to_vec(),
+            ec_level: EcLevel::M,
+            marker,
+            camera: Camera::from_pixels(900.0, 900.0, 199.5, 199.5).expect("valid camera"),
+            width_px: 400,
+            height_px: 400,
+            pose: marker.pose_centred_at(
+                EulerXyz::from_degrees(10.0, -15.0, 5.0 * k as f64).to_rotation(),
+                Vector3::new(0.0, 0.0, z_mm),
+            ),
+        };
+        let effects = Effects {
+            supersample: 3,
+            blur_px: 0.6,
+            noise: 2.0,
+            seed: k as u64,
+            ..Effects::default()
+        };
+        let tile = render(&scene, &effects).expect("renders").image;
+        let (x0, y0) = (20 + k * 420, 160);
+        for (row, pixels) in tile.pixels().chunks_exact(400).enumerate() {
+            let start = (y0 + row) * w + x0;
+            canvas[start..start + 400].copy_from_slice(pixels);
+        }
+    }
+    let image = GrayImage::new(w, h, canvas).expect("an image");
+    let jpeg = qrpose::render::encode(&image, Encoding::Jpeg(92)).expect("encodes");
+    (image, jpeg)
+}
+
+/// A 1280 × 720 frame of smooth texture with no code in it.
+// The grey level stays within 48..208 before the cast.
+#[allow(clippy::cast_possible_truncation)]
+fn no_code() -> GrayImage {
+    let (w, h) = (1280usize, 720usize);
+    let pixels = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f64, (i / w) as f64);
+            (128.0 + 60.0 * (x / 37.0).sin() * (y / 53.0).cos() + 20.0 * (x / 9.0 + y / 13.0).sin())
+                as u8
+        })
+        .collect();
+    GrayImage::new(w, h, pixels).expect("an image")
+}
+
+fn texts(detection: &qrpose::detect::Detection) -> Vec<String> {
+    let mut t: Vec<String> = detection
+        .codes
+        .iter()
+        .filter_map(|c| c.candidate.text.clone())
+        .collect();
+    t.sort();
+    t
+}
+
+/// A deadline no pass here comes near: the deadline is wall-clock time, and tests run
+/// unoptimised on shared cores; tests of what is read must not depend on the load.
+const ROOMY: Duration = Duration::from_secs(60);
+
+#[test]
+fn balanced_reads_every_code_of_a_frame_with_several() {
+    let (image, _) = three_codes();
+    let budget = Budget {
+        effort: Effort::Balanced,
+        max_detect: Some(ROOMY),
+    };
+    let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
+    assert_eq!(
+        texts(&detection),
+        ["SHELF-A", "SHELF-B", "SHELF-C"],
+        "{:?}",
+        detection.log
+    );
+}
+
+#[test]
+fn a_frame_without_a_code_costs_only_the_whole_frame_reads() {
+    let image = no_code();
+    for effort in [Effort::Fast, Effort::Balanced] {
+        let budget = Budget {
+            effort,
+            max_detect: Some(ROOMY),
+        };
+        let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
+        assert!(detection.codes.is_empty());
+        let names: Vec<&str> = detection
+            .log
+            .passes
+            .iter()
+            .map(|p| p.name.as_str())
+            .collect();
+        let expected: &[&str] = match effort {
+            Effort::Fast => &["rxing full"],
+            _ => &["rxing full", "rxing half", "rxing half global-histogram"],
+        };
+        if cfg!(feature = "zxing-cpp") {
+            assert_eq!(names.first(), Some(&"zxing-cpp full"), "{names:?}");
+        } else {
+            assert_eq!(names, expected, "{effort:?}");
+        }
+        assert!(!detection.log.budget_exhausted);
+    }
+}
+
+#[test]
+fn a_spent_deadline_stops_after_the_first_pass_and_says_so() {
+    let (image, _) = three_codes();
+    let budget = Budget {
+        effort: Effort::Thorough,
+        max_detect: Some(Duration::ZERO),
+    };
+    let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
+    assert_eq!(detection.log.passes.len(), 1, "{:?}", detection.log.passes);
+    assert!(detection.log.budget_exhausted);
+}
+
+fn request(extra: serde_json::Value) -> ImageRequest {
+    let mut body = json!({
+        "camera": {"fx_px": 900.0, "fy_px": 900.0, "cx_px": 639.5, "cy_px": 359.5},
+        "marker": {"size_mm": 40.0},
+    });
+    if let (Some(b), Some(e)) = (body.as_object_mut(), extra.as_object()) {
+        b.extend(e.clone());
+    }
+    serde_json::from_value(body).expect("a valid request")
+}
+
+#[test]
+fn the_image_request_takes_effort_and_a_deadline_and_warns_when_it_is_spent() {
+    let (_, jpeg) = three_codes();
+    let limits = ImageLimits::default();
+    let full =
+        estimate_image(&jpeg, &request(json!({"effort": "balanced"})), &limits).expect("estimates");
+    assert_eq!(full.markers.len(), 3);
+    assert!(full.warnings.is_empty());
+    assert!(!full.timing_ms.detect_passes.is_empty());
+    let rushed = estimate_image(
+        &jpeg,
+        &request(json!({"effort": "thorough", "max_detect_ms": 1e-6})),
+        &limits,
+    )
+    .expect("estimates");
+    assert_eq!(rushed.warnings, [ImageWarningDto::DetectionBudgetExhausted]);
+    assert_eq!(rushed.timing_ms.detect_passes.len(), 1);
+    for bad in [0.0, -5.0] {
+        let problem = estimate_image(&jpeg, &request(json!({"max_detect_ms": bad})), &limits)
+            .expect_err("refused");
+        assert_eq!(problem.code, ErrorCode::InvalidDetectionBudget);
+        assert_eq!(problem.field.as_deref(), Some("/max_detect_ms"));
+    }
+}
+
+#[test]
+fn the_servers_cap_lowers_a_larger_deadline() {
+    let (_, jpeg) = three_codes();
+    let capped = ImageLimits {
+        max_detect_ms: 1e-6,
+        ..ImageLimits::default()
+    };
+    let response = estimate_image(
+        &jpeg,
+        &request(json!({"effort": "thorough", "max_detect_ms": 60000.0})),
+        &capped,
+    )
+    .expect("estimates");
+    assert_eq!(
+        response.warnings,
+        [ImageWarningDto::DetectionBudgetExhausted]
+    );
+}
