@@ -23,7 +23,7 @@
 use crate::budget::{Effort, PassLog};
 use crate::filters::{downscale_half, invert, sharpen, stretch_contrast, upscale_double};
 use crate::gray::GrayImage;
-use crate::merge::{any_decoded, reread_undecoded};
+use crate::merge::{any_decoded, reread_undecoded, same_symbol};
 use crate::region::{Crop, Region, unread_regions};
 #[cfg(feature = "zxing-cpp")]
 use crate::zxing_cpp;
@@ -287,7 +287,7 @@ fn read_level(
         || detector.detect_with_regions(level),
     );
     for rough in read.into_iter().map(|c| rescale(c, scale)) {
-        if finds.found.iter().any(|f| same_place(f, &rough)) {
+        if finds.found.iter().any(|f| same_symbol(f, &rough)) {
             continue;
         }
         let precise = Crop::around(image, &rough.corners_px).map(|crop| {
@@ -309,13 +309,6 @@ fn read_level(
     finds
         .regions
         .extend(regions.into_iter().map(|r| r.rescaled(scale)));
-}
-
-/// Whether two candidates are the same symbol (see [`crate::merge_candidates`]).
-fn same_place(a: &Candidate, b: &Candidate) -> bool {
-    let mut probe = vec![a.clone()];
-    merge_candidates(&mut probe, vec![b.clone()]);
-    probe.len() == 1
 }
 
 /// The passes of step 2 on one crop, cheapest first: the image variants of

@@ -89,7 +89,6 @@ pub struct PassReport {
 /// The passes of one detection, and whether the deadline stopped it.
 #[derive(Debug, Clone)]
 pub struct PassLog {
-    started: Instant,
     deadline: Instant,
     /// The passes, in the order they ran.
     pub passes: Vec<PassReport>,
@@ -101,10 +100,8 @@ impl PassLog {
     /// A log whose deadline is `max_detect` from now.
     #[must_use]
     pub fn new(max_detect: Duration) -> Self {
-        let started = Instant::now();
         Self {
-            started,
-            deadline: started + max_detect,
+            deadline: Instant::now() + max_detect,
             passes: Vec::new(),
             budget_exhausted: false,
         }
@@ -136,12 +133,6 @@ impl PassLog {
             decoded: decoded(&out),
         });
         out
-    }
-
-    /// Time since the log was made, ms.
-    #[must_use]
-    pub fn elapsed_ms(&self) -> f64 {
-        self.started.elapsed().as_secs_f64() * 1e3
     }
 }
 

@@ -23,7 +23,7 @@ fn shortest_side_px(c: &[PixelPoint; 4]) -> f64 {
 }
 
 /// True when two candidates are the same symbol (centres closer than half a side).
-fn same_symbol(a: &Candidate, b: &Candidate) -> bool {
+pub(crate) fn same_symbol(a: &Candidate, b: &Candidate) -> bool {
     let d = (centroid(&a.corners_px).0 - centroid(&b.corners_px).0).norm();
     d < 0.5 * shortest_side_px(&a.corners_px).min(shortest_side_px(&b.corners_px))
 }

@@ -26,7 +26,7 @@
 //! to the similar-triangles depth of paper Eq. 2 (z ≈ L·f / l_image, averaged over the six
 //! edges). A caller's `initial_z_mm` replaces all of them with the paper's equal-depth start.
 
-use super::iterative::side_errors_mm;
+use super::iterative::{DepthIteration, side_errors_mm};
 use super::result::{EstimateError, TraceStep};
 use super::solver::{
     DEFAULT_CORNER_SIGMA_PX, DEFAULT_MAX_ITERATIONS, MAX_INITIAL_Z_MM, SolverParam, check_common,
@@ -83,21 +83,6 @@ impl DepthNewtonParams {
         }
         check_common(self.max_iterations, self.corner_sigma_px)
     }
-}
-
-/// The solved depths and how the solver got there.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DepthSolution {
-    /// Depths z1..z4, mm.
-    pub z_mm: [f64; 4],
-    /// The step fell below [`STEP_TOL_REL`] of the depth (or no better point exists).
-    pub converged: bool,
-    /// Iterations run (accepted and rejected steps).
-    pub iterations: u32,
-    /// Σ|Δz| of the last accepted step, mm; `None` when none was accepted.
-    pub convergence_error_mm: Option<f64>,
-    /// Depths and Σ|Δz| after each iteration, when asked for.
-    pub trace: Option<Vec<TraceStep>>,
 }
 
 /// Depth at which a fronto-parallel marker would show the observed edge lengths, averaged
@@ -267,7 +252,7 @@ pub fn solve(
     rays: &[NormalizedPoint; 4],
     marker: &Marker,
     params: &DepthNewtonParams,
-) -> DepthSolution {
+) -> DepthIteration {
     let start = match params.initial_z_mm {
         Some(z0) => [z0; 4],
         None => planar_pose_depths_mm(rays, marker)
@@ -300,7 +285,7 @@ pub fn solve(
             })
             .collect()
     });
-    DepthSolution {
+    DepthIteration {
         z_mm: out.point,
         converged: out.converged,
         iterations: out.iterations,

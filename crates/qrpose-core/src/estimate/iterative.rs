@@ -89,16 +89,17 @@ impl PaperParams {
     }
 }
 
-/// Where the iteration stopped.
+/// Where a depth solver stopped: this iteration, or `depth_newton`'s.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DepthIteration {
     /// Final depths z1..z4, mm.
     pub z_mm: [f64; 4],
-    /// e_c ≤ e_d was reached within n_max.
+    /// The method's criterion was met: e_c ≤ e_d within n_max here; for `depth-newton`, the
+    /// step fell below its tolerance (or no better point exists).
     pub converged: bool,
-    /// Updates applied.
+    /// Updates applied (`depth-newton`: accepted and rejected steps).
     pub iterations: u32,
-    /// e_c of the last update, mm; `None` when no update was applied.
+    /// e_c (Σ|Δz|) of the last applied update, mm; `None` when none was applied.
     pub convergence_error_mm: Option<f64>,
     /// z and e_c per iteration, when asked for.
     pub trace: Option<Vec<TraceStep>>,

@@ -104,28 +104,12 @@ pub fn estimate_from_rays(
 ) -> Result<PoseEstimate, EstimateError> {
     let mut estimate = match solver.solver() {
         Solver::Paper(params) => {
-            let it = iterative::iterate(rays, marker, params);
-            let depths = SolvedDepths {
-                method: Method::Paper,
-                z_mm: it.z_mm,
-                converged: it.converged,
-                iterations: it.iterations,
-                convergence_error_mm: it.convergence_error_mm,
-                trace: it.trace,
-            };
-            from_depths(rays, camera, marker, depths)?
+            let depths = iterative::iterate(rays, marker, params);
+            from_depths(rays, camera, marker, Method::Paper, depths)?
         }
         Solver::DepthNewton(params) => {
-            let s = depth_newton::solve(rays, marker, params);
-            let depths = SolvedDepths {
-                method: Method::DepthNewton,
-                z_mm: s.z_mm,
-                converged: s.converged,
-                iterations: s.iterations,
-                convergence_error_mm: s.convergence_error_mm,
-                trace: s.trace,
-            };
-            from_depths(rays, camera, marker, depths)?
+            let depths = depth_newton::solve(rays, marker, params);
+            from_depths(rays, camera, marker, Method::DepthNewton, depths)?
         }
         Solver::Reprojection(params) => {
             reprojection::by_reprojection(rays, camera, marker, params)?
@@ -163,22 +147,13 @@ fn add_warnings(estimate: &mut PoseEstimate, camera: &Camera, corner_sigma_px: f
     }
 }
 
-/// Where a depth-based method (`paper`, `depth-newton`) stopped.
-struct SolvedDepths {
-    method: Method,
-    z_mm: [f64; 4],
-    converged: bool,
-    iterations: u32,
-    convergence_error_mm: Option<f64>,
-    trace: Option<Vec<TraceStep>>,
-}
-
 /// Builds the estimate of the depth-based methods: corners from Eq. 6 and a rigid fit.
 fn from_depths(
     rays: &[NormalizedPoint; 4],
     camera: &Camera,
     marker: &Marker,
-    depths: SolvedDepths,
+    method: Method,
+    depths: iterative::DepthIteration,
 ) -> Result<PoseEstimate, EstimateError> {
     let corners_cam = iterative::corners_at_depths(rays, &depths.z_mm);
     let pose = fit::fit_rigid(marker, &corners_cam).ok_or(EstimateError::NoSolution {
@@ -190,7 +165,7 @@ fn from_depths(
         centre_mm,
         corners_cam,
         diagnostics: Diagnostics {
-            method: depths.method,
+            method,
             converged: depths.converged,
             iterations: depths.iterations,
             convergence_error_mm: depths.convergence_error_mm,
