@@ -11,7 +11,7 @@
 //!    inverted, sharpened, double scale) until it reads. A frame with nothing finder-like
 //!    costs the two reads of step 1 and nothing more.
 //! 3. **Everything** (`thorough`): every backend and every variant on the whole frame, as
-//!    long as the deadline allows.
+//!    long as the deadline allows (rqrr on frames of at most [`RQRR_WHOLE_FRAME_MAX_PIXELS`]).
 //!
 //! Before every pass after the first the deadline is checked ([`PassLog`]); symbols found on
 //! the way are re-read through their module grid and merged ([`crate::merge_candidates`]).
@@ -35,6 +35,13 @@ use qrpose_core::geometry::frames::PixelPoint;
 /// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
 /// backend misses at their own size, are found there.
 pub const UPSCALE_MAX_SIDE_PX: usize = 1920;
+
+/// rqrr searches the whole frame only up to this many pixels (thorough). Its grid search
+/// cannot be interrupted and grows with the number of finder-like blobs, not only with the
+/// pixels: 0.1-0.2 s on a 12 MP photo of one code, but 3 s on a 12 MP shelf photo with 55
+/// codes and 43 s on the same shelf at 49 MP (measured, docs/detection.md), which no deadline
+/// could stop. On larger frames rqrr still reads every region's crop.
+pub const RQRR_WHOLE_FRAME_MAX_PIXELS: usize = 4_000_000;
 
 /// One second pass of `auto`: a detector on a variant of the image, and the scale that maps
 /// the variant's pixels back (source px per variant px).
@@ -391,7 +398,11 @@ fn everything(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
         );
         finds.add(read);
     }
-    for backend in auto_order().into_iter().filter(|b| *b != Backend::Rxing) {
+    let rqrr_may_search = image.pixels().len() <= RQRR_WHOLE_FRAME_MAX_PIXELS;
+    for backend in auto_order()
+        .into_iter()
+        .filter(|b| *b != Backend::Rxing && (*b != Backend::Rqrr || rqrr_may_search))
+    {
         if !log.may_continue() {
             return;
         }

@@ -86,7 +86,7 @@ pub struct PassReport {
     pub decoded: usize,
 }
 
-/// The passes of one detection, and whether the deadline stopped it.
+/// The passes of one detection, and whether the deadline or a cancellation stopped it.
 #[derive(Debug, Clone)]
 pub struct PassLog {
     deadline: Instant,
@@ -94,6 +94,9 @@ pub struct PassLog {
     pub passes: Vec<PassReport>,
     /// A pass was skipped because the deadline had passed.
     pub budget_exhausted: bool,
+    /// A pass was skipped because the caller cancelled the detection
+    /// ([`crate::cancel::CancelFlag`]): nobody waits for the answer any more.
+    pub cancelled: bool,
 }
 
 impl PassLog {
@@ -104,12 +107,17 @@ impl PassLog {
             deadline: Instant::now() + max_detect,
             passes: Vec::new(),
             budget_exhausted: false,
+            cancelled: false,
         }
     }
 
-    /// Whether another pass may start; when not, the log records that work was skipped.
+    /// Whether another pass may start; when not, the log records why work was skipped (the
+    /// deadline, or a cancellation of the current scope, [`crate::cancel::run_cancellable`]).
     pub fn may_continue(&mut self) -> bool {
-        if Instant::now() < self.deadline {
+        if crate::cancel::cancelled() {
+            self.cancelled = true;
+            false
+        } else if Instant::now() < self.deadline {
             true
         } else {
             self.budget_exhausted = true;
@@ -161,5 +169,17 @@ mod tests {
         assert_eq!(log.passes[0].decoded, 2);
         let mut roomy = PassLog::new(Duration::from_secs(60));
         assert!(roomy.may_continue() && !roomy.budget_exhausted);
+    }
+
+    #[test]
+    fn a_cancelled_scope_stops_further_passes_however_roomy_the_deadline() {
+        let flag = crate::cancel::CancelFlag::new();
+        crate::cancel::run_cancellable(&flag, || {
+            let mut log = PassLog::new(Duration::from_secs(60));
+            assert!(log.may_continue());
+            flag.cancel();
+            assert!(!log.may_continue());
+            assert!(log.cancelled && !log.budget_exhausted);
+        });
     }
 }

@@ -23,17 +23,27 @@ use std::ops::{AddAssign, Mul};
 /// docs/detection.md).
 pub fn sharpen(image: &GrayImage, sigma_px: f64, amount: f64) -> Option<GrayImage> {
     let (w, h) = (image.width(), image.height());
-    let src: Vec<f32> = image.pixels().iter().map(|&p| f32::from(p)).collect();
+    let src = image.pixels();
     let amount = amount as f32;
     let mut pixels = Vec::with_capacity(w * h);
-    separable_gaussian(&src, w, sigma_px, |y, blurred| {
-        let row = src.get(y * w..(y + 1) * w).unwrap_or_default();
-        pixels.extend(
-            row.iter()
-                .zip(blurred)
-                .map(|(&v, &b)| (v + amount * (v - b)).round().clamp(0.0, 255.0) as u8),
-        );
-    });
+    separable_gaussian(
+        h,
+        w,
+        sigma_px,
+        |y, row: &mut [f32]| {
+            let line = src.get(y * w..(y + 1) * w).unwrap_or_default();
+            for (r, &p) in row.iter_mut().zip(line) {
+                *r = f32::from(p);
+            }
+        },
+        |y, blurred| {
+            let row = src.get(y * w..(y + 1) * w).unwrap_or_default();
+            pixels.extend(row.iter().zip(blurred).map(|(&p, &b)| {
+                let v = f32::from(p);
+                (v + amount * (v - b)).round().clamp(0.0, 255.0) as u8
+            }));
+        },
+    );
     GrayImage::new(w, h, pixels)
 }
 
@@ -50,9 +60,13 @@ pub fn gaussian_blur_plane(
         return None;
     }
     let mut out = Vec::with_capacity(plane.len());
-    separable_gaussian(plane, width, sigma_px, |_, blurred| {
-        out.extend_from_slice(blurred);
-    });
+    separable_gaussian(
+        height,
+        width,
+        sigma_px,
+        |y, row: &mut [f64]| row.copy_from_slice(&plane[y * width..(y + 1) * width]),
+        |_, blurred| out.extend_from_slice(blurred),
+    );
     Some(out)
 }
 
@@ -84,45 +98,59 @@ impl Sample for f64 {
     }
 }
 
-/// Separable Gaussian blur of a row-major plane `width` px wide, borders clamped to the
-/// nearest pixel: a horizontal pass on an edge-padded copy of each row, then the vertical
-/// pass a whole row at a time (both loops vectorise). Each blurred row is handed to
-/// `emit(y, row)` in order, so a caller can use it without a second full-size buffer.
-/// Taps are summed in kernel order, horizontal pass first. Nothing is emitted for a zero
-/// `width`.
+/// Separable Gaussian blur of a `height` × `width` plane whose row `y` the caller writes
+/// into a buffer with `read_row(y, row)`, borders clamped to the nearest pixel: a horizontal
+/// pass on an edge-padded copy of each row, then the vertical pass a whole row at a time
+/// (both loops vectorise). Each blurred row is handed to `emit(y, row)` in order.
+///
+/// Memory is O(width · kernel length): the horizontally blurred rows live in a ring of
+/// 2r + 1 rows (row `s` in slot `s mod (2r + 1)`), each computed once when the vertical
+/// pass first needs it, so a whole-frame filter never holds a second full-size plane in
+/// floating point (that was 8 bytes a pixel on a 50 MP frame). Taps are summed in kernel
+/// order, horizontal pass first. Nothing is emitted for a zero `width` or `height`.
 fn separable_gaussian<T: Sample>(
-    src: &[T],
+    height: usize,
     width: usize,
     sigma_px: f64,
+    mut read_row: impl FnMut(usize, &mut [T]),
     mut emit: impl FnMut(usize, &[T]),
 ) {
-    if width == 0 {
+    if width == 0 || height == 0 {
         return;
     }
-    let w = width;
-    let h = src.len() / w;
+    let (w, h) = (width, height);
     let kernel: Vec<T> = gaussian_kernel(sigma_px)
         .into_iter()
         .map(T::from_f64)
         .collect();
     let radius = kernel.len() / 2;
-    let mut tmp = vec![T::default(); w * h];
+    let slots = kernel.len();
+    let mut ring = vec![T::default(); slots * w];
     let mut padded = vec![T::default(); w + 2 * radius];
-    for (row, out) in src.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
-        let (first, last) = (row[0], row[w - 1]);
-        padded[..radius].fill(first);
-        padded[radius..radius + w].copy_from_slice(row);
-        padded[radius + w..].fill(last);
-        for (o, window) in out.iter_mut().zip(padded.windows(2 * radius + 1)) {
-            *o = kernel.iter().zip(window).map(|(&k, &p)| k * p).sum();
-        }
-    }
     let mut blurred = vec![T::default(); w];
+    // Source rows 0..next are in the ring (the last `slots` of them still valid).
+    let mut next = 0;
     for y in 0..h {
+        let needed = (y + radius).min(h - 1);
+        while next <= needed {
+            read_row(next, &mut padded[radius..radius + w]);
+            let (first, last) = (padded[radius], padded[radius + w - 1]);
+            padded[..radius].fill(first);
+            padded[radius + w..].fill(last);
+            let slot = (next % slots) * w;
+            for (o, window) in ring[slot..slot + w]
+                .iter_mut()
+                .zip(padded.windows(2 * radius + 1))
+            {
+                *o = kernel.iter().zip(window).map(|(&k, &p)| k * p).sum();
+            }
+            next += 1;
+        }
         blurred.fill(T::default());
         for (k, &kv) in kernel.iter().enumerate() {
             let yy = (y + k).saturating_sub(radius).min(h - 1);
-            for (b, &t) in blurred.iter_mut().zip(&tmp[yy * w..(yy + 1) * w]) {
+            let slot = (yy % slots) * w;
+            for (b, &t) in blurred.iter_mut().zip(&ring[slot..slot + w]) {
                 *b += kv * t;
             }
         }

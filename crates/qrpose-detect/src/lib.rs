@@ -28,6 +28,7 @@
 mod auto;
 mod backend;
 pub mod budget;
+pub mod cancel;
 pub mod contain;
 pub mod corners;
 pub mod decode;

@@ -1,7 +1,9 @@
 //! Encoded image bytes to an 8-bit grayscale raster, with size limits checked first.
 //!
-//! Formats: JPEG (the fast path, module `jpeg`: zune-jpeg decodes luma directly, no RGB
-//! round trip), PNG and WebP (through the `image` crate, then converted to luma). The format
+//! Formats: JPEG (module `jpeg`: zune-jpeg decodes luma directly, no RGB round trip), PNG
+//! (module `png`: row by row to luma, so the only frame-sized buffer is the 1-byte-a-pixel
+//! result) and WebP (through the `image` crate, whole frame in colour, then converted to
+//! luma: 5 bytes a pixel at its peak, the one format above 1). The format
 //! is sniffed from the magic bytes, never taken from a file name or a content type.
 //!
 //! Order of checks, so that no request can make the service allocate what it was not
@@ -17,6 +19,7 @@
 #![allow(clippy::cast_possible_truncation)]
 
 mod jpeg;
+mod png;
 
 pub use crate::gray::GrayImage;
 
@@ -197,6 +200,23 @@ fn png_dimensions(bytes: &[u8]) -> Result<(u64, u64), DecodeError> {
     Ok((be(&header[8..12]), be(&header[12..16])))
 }
 
+/// What decoding `bytes` and detecting in them weigh against a memory budget counted in
+/// pixels: the declared width × height (at most `max_pixels`, which decoding enforces),
+/// twice that for WebP, whose decoder holds the whole frame in colour (4 bytes a pixel)
+/// besides the luma; 0 for bytes whose size cannot be read (they fail before any frame is
+/// allocated).
+#[must_use]
+pub fn admission_pixels(bytes: &[u8], max_pixels: u64) -> u64 {
+    let Ok((width_px, height_px)) = declared_dimensions(bytes) else {
+        return 0;
+    };
+    let pixels = width_px.saturating_mul(height_px).min(max_pixels);
+    match sniff_format(bytes) {
+        Some(ImageFormat::Webp) => pixels.saturating_mul(2),
+        _ => pixels,
+    }
+}
+
 fn image_reader(bytes: &[u8], format: ImageFormat) -> image::ImageReader<Cursor<&[u8]>> {
     let image_format = match format {
         ImageFormat::Png => image::ImageFormat::Png,
@@ -225,7 +245,8 @@ pub fn decode_gray(bytes: &[u8], limits: &DecodeLimits) -> Result<GrayImage, Dec
     check_dimensions(width_px, height_px, limits)?;
     contained(format, || match format {
         ImageFormat::Jpeg => jpeg::decode_luma(bytes),
-        ImageFormat::Png | ImageFormat::Webp => decode_with_image(bytes, format, limits),
+        ImageFormat::Png => png::decode_luma(bytes).map_err(|e| corrupt(format, e)),
+        ImageFormat::Webp => decode_with_image(bytes, format, limits),
     })
 }
 

@@ -36,7 +36,8 @@ fn png_header_declaring(width: u32, height: u32) -> Vec<u8> {
     out
 }
 
-fn crc32(data: &[u8]) -> u32 {
+/// The CRC-32 of a PNG chunk (type and data).
+pub(super) fn crc32(data: &[u8]) -> u32 {
     let mut crc = 0xFFFF_FFFFu32;
     for &b in data {
         crc ^= u32::from(b);
@@ -78,6 +79,28 @@ fn refuses_a_huge_declared_size_before_allocating() {
             max_pixels: DEFAULT_MAX_PIXELS
         }
     );
+}
+
+#[test]
+fn admission_weighs_the_declared_size_capped_and_webp_twice() {
+    assert_eq!(admission_pixels(&encode_png(30, 20), 1_000), 600);
+    assert_eq!(admission_pixels(&encode_jpeg(30, 20), 1_000), 600);
+    assert_eq!(
+        admission_pixels(&png_header_declaring(7000, 7000), 50_000_000),
+        49_000_000
+    );
+    assert_eq!(
+        admission_pixels(&png_header_declaring(100_000, 100_000), 50_000_000),
+        50_000_000,
+        "refused at decode before any allocation: weighs at most the limit"
+    );
+    let mut webp = Vec::new();
+    image::DynamicImage::ImageLuma8(image::GrayImage::new(30, 20))
+        .into_rgb8()
+        .write_to(&mut Cursor::new(&mut webp), image::ImageFormat::WebP)
+        .expect("webp encodes");
+    assert_eq!(admission_pixels(&webp, 1_000), 1_200);
+    assert_eq!(admission_pixels(b"not an image", 1_000), 0);
 }
 
 #[test]
