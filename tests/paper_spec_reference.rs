@@ -90,8 +90,10 @@ proptest! {
             corners_mm: Some(xn.iter().map(|p| vec![p[0] * f, p[1] * f]).collect()),
             corner_order: CornerOrderDto::Paper,
             camera: CameraDto { focal_length_mm: Some(f), ..Default::default() },
-            marker: MarkerDto { size_mm: l },
+            marker: Some(MarkerDto { size_mm: l }),
+            payload: None,
             solver: SolverDto { method: MethodDto::Paper, initial_z_mm: Some(z0), gain: k, tolerance_mm: e_d, max_iterations: n_max, ..SolverDto::default() },
+            prior: None,
         };
         let ours = estimate_corners(&request).map_err(|p| TestCaseError::fail(p.detail))?;
         // Same normalised inputs as the service sees them (x' / f).

@@ -16,7 +16,7 @@ use qrpose::api::{
     response::PoseResponse,
 };
 use qrpose::geometry::{
-    camera::{Camera, Distortion},
+    camera::{Camera, PlumbBob},
     euler::angle_between,
     frames::MarkerToCamera,
     marker::{CornerOrder, Marker},
@@ -34,7 +34,7 @@ const MAX_OBLIQUITY_DEG: f64 = 80.0;
 struct Scenario {
     image_px: (f64, f64),
     sensor_form: bool,
-    distortion: Option<Distortion>,
+    distortion: Option<PlumbBob>,
     centre_px: (f64, f64),
     distance_mm: f64,
     size_mm: f64,
@@ -72,7 +72,7 @@ fn scenario() -> impl Strategy<Value = Scenario> {
                 Scenario {
                     image_px,
                     sensor_form,
-                    distortion: d.map(|(k1, k2, p1, p2, k3)| Distortion { k1, k2, p1, p2, k3 }),
+                    distortion: d.map(|(k1, k2, p1, p2, k3)| PlumbBob { k1, k2, p1, p2, k3 }),
                     centre_px: (fu * (image_px.0 - 1.0), fv * (image_px.1 - 1.0)),
                     distance_mm,
                     size_mm: size_mm.min(0.8 * distance_mm),
@@ -95,6 +95,7 @@ fn camera_dto(s: &Scenario) -> CameraDto {
         p1: d.p1,
         p2: d.p2,
         k3: d.k3,
+        ..DistortionDto::default()
     });
     if s.sensor_form {
         CameraDto {
@@ -185,11 +186,13 @@ fn solve(s: &Scenario, method: MethodDto) -> Result<(PoseResponse, MarkerToCamer
         corners_mm: None,
         corner_order: CornerOrderDto::Qr,
         camera: camera_dto,
-        marker: MarkerDto { size_mm: s.size_mm },
+        marker: Some(MarkerDto { size_mm: s.size_mm }),
+        payload: None,
         solver: SolverDto {
             method,
             ..SolverDto::default()
         },
+        prior: None,
     };
     let response = estimate_corners(&request)
         .map_err(|p| TestCaseError::fail(format!("{}: {}", p.title, p.detail)))?;

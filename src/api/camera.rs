@@ -5,40 +5,144 @@
 use super::problem::{ErrorCode, Problem};
 use super::refusal::problem_from_camera_error;
 use super::request::CornersUnit;
-use crate::geometry::camera::{Camera, Distortion};
+use crate::geometry::camera::{Camera, CameraError, CameraParam, Distortion, DistortionModel};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-/// Brown-Conrady lens distortion, OpenCV's coefficients and meaning. Omitted terms are 0.
+/// A lens model of `camera.distortion`, by the name ROS `camera_info` gives it.
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema, clap::ValueEnum,
+)]
+#[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
+pub enum DistortionModelDto {
+    /// Brown-Conrady: k1 k2 p1 p2 k3 (the default).
+    #[default]
+    PlumbBob,
+    /// OpenCV's rational model: k1 k2 p1 p2 k3 k4 k5 k6.
+    RationalPolynomial,
+    /// OpenCV's fisheye model: k1 k2 k3 k4, on the angle from the optical axis.
+    Equidistant,
+}
+
+impl From<DistortionModelDto> for DistortionModel {
+    fn from(m: DistortionModelDto) -> Self {
+        match m {
+            DistortionModelDto::PlumbBob => Self::PlumbBob,
+            DistortionModelDto::RationalPolynomial => Self::RationalPolynomial,
+            DistortionModelDto::Equidistant => Self::Equidistant,
+        }
+    }
+}
+
+/// Lens distortion with OpenCV's coefficients and meaning, in one of three models
+/// (`docs/calibration.md`): `plumb_bob` (the default: k1 k2 p1 p2 k3), `rational_polynomial`
+/// (k1 k2 p1 p2 k3 k4 k5 k6) or `equidistant` (fisheye: k1 k2 k3 k4). Omitted coefficients
+/// are 0; a coefficient that the model does not have must be omitted or 0.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DistortionDto {
-    /// Radial r² coefficient.
+    /// The lens model: `plumb_bob` when omitted.
+    #[serde(default)]
+    pub model: Option<DistortionModelDto>,
+    /// Radial r² coefficient (`equidistant`: θ³).
     #[serde(default)]
     #[schema(example = -0.12)]
     pub k1: f64,
-    /// Radial r⁴ coefficient.
+    /// Radial r⁴ coefficient (`equidistant`: θ⁵).
     #[serde(default)]
     #[schema(example = 0.03)]
     pub k2: f64,
-    /// Tangential coefficient p1.
+    /// Tangential coefficient p1 (not in `equidistant`).
     #[serde(default)]
     pub p1: f64,
-    /// Tangential coefficient p2.
+    /// Tangential coefficient p2 (not in `equidistant`).
     #[serde(default)]
     pub p2: f64,
-    /// Radial r⁶ coefficient.
+    /// Radial r⁶ coefficient (`equidistant`: θ⁷).
     #[serde(default)]
     pub k3: f64,
+    /// `rational_polynomial`: the denominator's r² coefficient; `equidistant`: θ⁹. Not in
+    /// `plumb_bob`.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub k4: f64,
+    /// `rational_polynomial` only: the denominator's r⁴ coefficient.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub k5: f64,
+    /// `rational_polynomial` only: the denominator's r⁶ coefficient.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub k6: f64,
+}
+
+/// Whether a coefficient that only the newer models have is unset: k4 k5 k6 are written
+/// only when set, so that a `plumb_bob` distortion serialises as it did before them.
+fn is_zero(value: &f64) -> bool {
+    *value == 0.0
+}
+
+impl DistortionDto {
+    /// The core distortion these coefficients describe; fields are reported below
+    /// `camera_pointer` (`/camera/distortion/k4`).
+    ///
+    /// # Errors
+    /// `non_finite_number` naming a NaN or infinite coefficient; `invalid_camera_parameter`
+    /// naming a non-zero coefficient that the model does not have.
+    pub fn to_distortion(&self, camera_pointer: &str) -> Result<Distortion, Problem> {
+        let model = DistortionModel::from(self.model.unwrap_or_default());
+        let named = [
+            (CameraParam::K1, self.k1),
+            (CameraParam::K2, self.k2),
+            (CameraParam::P1, self.p1),
+            (CameraParam::P2, self.p2),
+            (CameraParam::K3, self.k3),
+            (CameraParam::K4, self.k4),
+            (CameraParam::K5, self.k5),
+            (CameraParam::K6, self.k6),
+        ];
+        if let Some(&(param, _)) = named.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(problem_from_camera_error(
+                CameraError::NonFinite { param },
+                camera_pointer,
+            ));
+        }
+        if let Some(&(param, value)) = named
+            .iter()
+            .find(|(p, v)| *v != 0.0 && !model.params().contains(p))
+        {
+            let takes: Vec<&str> = model.params().iter().map(|p| p.name()).collect();
+            return Err(Problem::new(
+                ErrorCode::InvalidCameraParameter,
+                format!(
+                    "{param} = {value} is not a coefficient of the {model} model (it takes {}); omit it or set the model",
+                    takes.join(", ")
+                ),
+            )
+            .with_field(format!("{camera_pointer}/distortion/{param}")));
+        }
+        let coefficients: Vec<f64> = model
+            .params()
+            .iter()
+            .filter_map(|p| named.iter().find(|(q, _)| q == p).map(|&(_, v)| v))
+            .collect();
+        Distortion::from_coefficients(model, &coefficients).map_err(|e| {
+            Problem::new(ErrorCode::InvalidCameraParameter, e.to_string())
+                .with_field(format!("{camera_pointer}/distortion"))
+        })
+    }
 }
 
 /// Camera intrinsics, in exactly one of three forms:
 /// pixels (`fx_px, fy_px, cx_px, cy_px`); sensor (`focal_length_mm, pixel_size_um, cx_px,
 /// cy_px`, so fx = fy = focal length / pixel size); or, with `corners_mm` only, the paper's
-/// image plane (`focal_length_mm`, plus optionally `pixel_size_um` to get pixel diagnostics).
+/// image plane (`focal_length_mm`, plus optionally `pixel_size_um` to get pixel diagnostics);
+/// or, with a site loaded, by `id` alone.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CameraDto {
+    /// The id of a camera of the loaded site (`qrpose serve --site`), instead of every
+    /// other field: its calibration, distortion and mount come from the site
+    /// (`docs/site.md`).
+    pub id: Option<String>,
     /// Horizontal focal length, px.
     #[schema(example = 1000.0)]
     pub fx_px: Option<f64>,
@@ -140,8 +244,85 @@ impl CameraDto {
                 }
             }
         };
-        let d = self.distortion.unwrap_or_default();
-        let distortion = Distortion::try_new(d.k1, d.k2, d.p1, d.p2, d.k3).map_err(err)?;
+        let distortion = self
+            .distortion
+            .unwrap_or_default()
+            .to_distortion("/camera")?;
         Ok((camera.with_distortion(distortion), mm_per_px))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn distortion(body: serde_json::Value) -> Result<Distortion, Problem> {
+        let dto: DistortionDto = serde_json::from_value(body).expect("a distortion object");
+        dto.to_distortion("/camera")
+    }
+
+    #[test]
+    fn a_distortion_without_a_model_is_plumb_bob_as_before() {
+        let d = distortion(json!({"k1": -0.1, "p2": 0.001})).expect("valid");
+        assert_eq!(d.model(), DistortionModel::PlumbBob);
+        assert_eq!(d.coefficients(), vec![-0.1, 0.0, 0.0, 0.001, 0.0]);
+    }
+
+    #[test]
+    fn each_model_takes_its_coefficients_in_opencv_order() {
+        let rational = distortion(json!({
+            "model": "rational_polynomial", "k1": 1.0, "k2": 2.0, "p1": 3.0, "p2": 4.0,
+            "k3": 5.0, "k4": 6.0, "k5": 7.0, "k6": 8.0}))
+        .expect("valid");
+        assert_eq!(
+            rational.coefficients(),
+            vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]
+        );
+        let fisheye =
+            distortion(json!({"model": "equidistant", "k1": 0.1, "k2": 0.2, "k3": 0.3, "k4": 0.4}))
+                .expect("valid");
+        assert_eq!(fisheye.model(), DistortionModel::Equidistant);
+        assert_eq!(fisheye.coefficients(), vec![0.1, 0.2, 0.3, 0.4]);
+    }
+
+    #[test]
+    fn refuses_a_coefficient_the_model_does_not_have_naming_it() {
+        let cases = [
+            (json!({"model": "equidistant", "k1": 0.1, "p1": 0.01}), "p1"),
+            (json!({"model": "equidistant", "k6": 0.2}), "k6"),
+            (json!({"k1": -0.2, "k4": 0.5}), "k4"),
+            (json!({"model": "plumb_bob", "k5": 0.5}), "k5"),
+        ];
+        for (body, param) in cases {
+            let problem = distortion(body.clone()).expect_err("refused");
+            assert_eq!(problem.code, ErrorCode::InvalidCameraParameter, "{body}");
+            let pointer = format!("/camera/distortion/{param}");
+            assert_eq!(problem.field.as_deref(), Some(pointer.as_str()), "{body}");
+            assert!(
+                problem.detail.contains("not a coefficient"),
+                "{}",
+                problem.detail
+            );
+        }
+    }
+
+    #[test]
+    fn refuses_a_non_finite_coefficient_naming_it() {
+        let dto = DistortionDto {
+            model: Some(DistortionModelDto::RationalPolynomial),
+            k5: f64::NAN,
+            ..DistortionDto::default()
+        };
+        let problem = dto.to_distortion("/camera").expect_err("NaN");
+        assert_eq!(problem.code, ErrorCode::NonFiniteNumber);
+        assert_eq!(problem.field.as_deref(), Some("/camera/distortion/k5"));
+    }
+
+    #[test]
+    fn refuses_an_unknown_model_name() {
+        let err = serde_json::from_value::<DistortionDto>(json!({"model": "fisheye"}))
+            .expect_err("not a model name of the API");
+        assert!(err.to_string().contains("unknown variant"), "{err}");
     }
 }

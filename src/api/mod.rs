@@ -6,41 +6,31 @@
 //! module.
 
 pub mod camera;
+pub mod context;
+pub mod corners;
 pub mod finite;
+pub mod frames;
 pub mod image;
 pub mod problem;
 pub mod refusal;
 pub mod request;
 pub mod response;
+pub mod site;
 
-use crate::estimate::estimate_pose;
+pub use corners::estimate_corners_in;
 use problem::Problem;
-use refusal::problem_from_estimate_error;
 use request::CornersRequest;
 use response::PoseResponse;
-use std::time::Instant;
 
-/// Validates a corners request and estimates the pose.
+/// Validates a corners request and estimates the pose, without a site
+/// ([`estimate_corners_in`]).
 ///
 /// # Errors
 /// A [`Problem`] (4xx) for anything wrong with the request, including 422
 /// `numerically_degenerate` when a number of the result is not finite (inputs at magnitudes
 /// such as 1e150 px). Non-convergence is not an error: the response says `converged: false`.
 pub fn estimate_corners(request: &CornersRequest) -> Result<PoseResponse, Problem> {
-    let started = Instant::now();
-    let valid = request.validate()?;
-    check_arithmetic_range(&valid)?;
-    let s = &valid.setup;
-    let estimate = estimate_pose(&valid.quad, &s.camera, &s.marker, &s.solver)
-        .map_err(|e| problem_from_estimate_error(e, valid.corners_pointer))?;
-    let elapsed_us = started.elapsed().as_secs_f64() * 1e6;
-    PoseResponse::try_new(
-        &estimate,
-        &s.camera,
-        &s.marker,
-        elapsed_us,
-        valid.corners_pointer,
-    )
+    estimate_corners_in(request, None)
 }
 
 /// Largest magnitude (and inverse of the smallest) of a ray coordinate, of the corners'

@@ -70,6 +70,21 @@ pub enum ErrorCode {
     DetectorUnavailable,
     /// 422: `points = finders` was asked for with a method other than `reprojection`.
     PointsNeedReprojection,
+    /// 422: `camera.id` (`camera_id`) names no camera of the loaded site, or no site is
+    /// loaded.
+    UnknownCamera,
+    /// 422: no marker size for this code: the request gives none and the site has no rule
+    /// for its payload and no default. In an image response, the marker's own problem (its
+    /// `pose` is null; the other markers are unaffected).
+    UnknownMarkerSize,
+    /// 422: the `prior` is unusable: neither or both rotations, a zero quaternion, or
+    /// `sigma_deg` outside (0, 180].
+    InvalidPrior,
+    /// 404: the service runs without a site (`qrpose serve --site`).
+    NoSite,
+    /// 422: the site file on disk was refused on reload; the site loaded before stays in
+    /// use. `detail` says `FILE:LINE: reason`.
+    InvalidSite,
     /// 413: the request body exceeds the configured limit.
     PayloadTooLarge,
     /// 415: the content type is not one this endpoint accepts.
@@ -94,7 +109,7 @@ impl ErrorCode {
         use ErrorCode::*;
         match self {
             MalformedJson | MalformedQuery | MalformedMultipart => 400,
-            NotFound => 404,
+            NotFound | NoSite => 404,
             MethodNotAllowed => 405,
             ImageTooLarge | PayloadTooLarge => 413,
             UnsupportedMediaType => 415,
@@ -135,6 +150,11 @@ impl ErrorCode {
             ImageTooLarge => "Image too large",
             DetectorUnavailable => "Detector not available",
             PointsNeedReprojection => "Finder points need the reprojection method",
+            UnknownCamera => "Unknown camera",
+            UnknownMarkerSize => "Unknown marker size",
+            InvalidPrior => "Invalid prior",
+            NoSite => "No site loaded",
+            InvalidSite => "Invalid site file",
             PayloadTooLarge => "Payload too large",
             UnsupportedMediaType => "Unsupported media type",
             NotFound => "Not found",

@@ -6,6 +6,8 @@
 //! that a typo (`max_iteration`) cannot silently fall back to a default.
 
 pub use super::camera::{CameraDto, DistortionDto};
+use super::context::{missing_marker, resolve_camera, resolve_marker};
+pub use super::frames::{PriorDto, ValidPrior};
 use super::problem::{ErrorCode, Problem};
 use super::refusal::{problem_from_estimate_error, problem_from_quad_error};
 use crate::estimate::{
@@ -19,6 +21,7 @@ use crate::geometry::{
     marker::{CornerOrder, Marker, MarkerError},
     quad::ImageQuad,
 };
+use qrpose_site::{Site, SiteCamera, SizeSource};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
@@ -169,13 +172,23 @@ pub struct CornersRequest {
     /// Order of the corners (default `qr`).
     #[serde(default)]
     pub corner_order: CornerOrderDto,
-    /// Camera intrinsics.
+    /// Camera intrinsics, or `{"id": …}` naming a camera of the loaded site.
     pub camera: CameraDto,
-    /// The printed code.
-    pub marker: MarkerDto,
+    /// The printed code. May be omitted when the loaded site gives the size (by `payload`,
+    /// or its default).
+    #[serde(default)]
+    pub marker: Option<MarkerDto>,
+    /// The code's payload: the site's size rules and map look it up (`docs/site.md`).
+    #[serde(default)]
+    #[schema(example = "LOC-0001")]
+    pub payload: Option<String>,
     /// Solver and parameters (all optional).
     #[serde(default)]
     pub solver: SolverDto,
+    /// An expected orientation that picks between the two poses of the planar ambiguity
+    /// (`reprojection` only); `ambiguity.resolved_by` says when it decided.
+    #[serde(default)]
+    pub prior: Option<PriorDto>,
 }
 
 /// Which unit corners come in.
@@ -273,7 +286,7 @@ impl MarkerDto {
     }
 }
 
-/// Validates camera, marker and solver for corners in `unit`.
+/// Validates camera, marker and solver for corners in `unit`, without a site.
 ///
 /// # Errors
 /// The first problem found, camera first.
@@ -283,12 +296,12 @@ pub fn pose_setup(
     solver: &SolverDto,
     unit: CornersUnit,
 ) -> Result<PoseSetup, Problem> {
-    let (camera, mm_per_px) = camera.to_camera(unit)?;
+    let resolved = resolve_camera(camera, unit, None)?;
     Ok(PoseSetup {
-        camera,
+        camera: resolved.camera,
         marker: marker.to_marker()?,
         solver: solver.to_solver()?,
-        mm_per_px,
+        mm_per_px: resolved.mm_per_px,
     })
 }
 
@@ -327,14 +340,35 @@ pub struct ValidCornersRequest {
     pub setup: PoseSetup,
     /// `/corners_px` or `/corners_mm`, to name corners in later errors.
     pub corners_pointer: &'static str,
+    /// Where the marker size came from.
+    pub size_source: SizeSource,
+    /// The prior, validated.
+    pub prior: Option<ValidPrior>,
 }
 
 impl CornersRequest {
-    /// Validates the whole request.
+    /// Validates the whole request without a site.
     ///
     /// # Errors
     /// A [`Problem`] naming the first field at fault.
     pub fn validate(&self) -> Result<ValidCornersRequest, Problem> {
+        self.validate_in(None).map(|(valid, _)| valid)
+    }
+
+    /// Validates the whole request against `site`: `camera.id` names a site camera (also
+    /// returned), and a missing marker size comes from the site's rules for `payload`.
+    ///
+    /// # Errors
+    /// A [`Problem`] naming the first field at fault: `unknown_camera`,
+    /// `unknown_marker_size` (field `/payload`), `invalid_prior` among the others.
+    pub fn validate_in<'a>(
+        &self,
+        site: Option<&'a Site>,
+    ) -> Result<(ValidCornersRequest, Option<&'a SiteCamera>), Problem> {
+        // Without a site a missing marker is refused first, as the required field it was.
+        if self.marker.is_none() && site.is_none() {
+            return Err(missing_marker());
+        }
         let (corners, unit, pointer) = match (&self.corners_px, &self.corners_mm) {
             (Some(px), None) => (px, CornersUnit::Px, "/corners_px"),
             (None, Some(mm)) => (mm, CornersUnit::Mm, "/corners_mm"),
@@ -353,16 +387,34 @@ impl CornersRequest {
                 .with_field("/corners_mm"));
             }
         };
-        let setup = pose_setup(&self.camera, &self.marker, &self.solver, unit)?;
+        let resolved = resolve_camera(&self.camera, unit, site)?;
+        let (marker, size_source) = resolve_marker(
+            self.marker.as_ref(),
+            site,
+            self.payload.as_deref(),
+            "/payload",
+        )?;
+        let setup = PoseSetup {
+            camera: resolved.camera,
+            marker,
+            solver: self.solver.to_solver()?,
+            mm_per_px: resolved.mm_per_px,
+        };
+        let prior = self.prior.as_ref().map(PriorDto::validate).transpose()?;
         let four = four_corners(corners, pointer)?;
         let scale = setup.mm_per_px.map_or(1.0, |mm_per_px| 1.0 / mm_per_px);
         let points = four.map(|[u, v]| PixelPoint::new(u * scale, v * scale));
         let quad = ImageQuad::try_new(points, self.corner_order.into())
             .map_err(|e| problem_from_quad_error(e, pointer))?;
-        Ok(ValidCornersRequest {
-            quad,
-            setup,
-            corners_pointer: pointer,
-        })
+        Ok((
+            ValidCornersRequest {
+                quad,
+                setup,
+                corners_pointer: pointer,
+                size_source,
+                prior,
+            },
+            resolved.site_camera,
+        ))
     }
 }

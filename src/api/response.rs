@@ -1,6 +1,7 @@
 //! Response bodies: the pose of one marker, with rotation and diagnostics.
 
 use super::finite::first_non_finite;
+use super::frames::{FramePoseDto, MarkerSizeSourceDto};
 use super::problem::{ErrorCode, Problem};
 use super::request::MethodDto;
 use crate::estimate::{Ambiguity, Diagnostics, Method, PoseEstimate, TraceStep, Warning};
@@ -14,7 +15,8 @@ use nalgebra::{Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-/// A point or vector in the camera frame (x right, y down, z forward), mm.
+/// A point or vector, mm: in the camera frame (x right, y down, z forward) unless the field
+/// names another frame.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Vec3Mm {
     /// Right, mm.
@@ -100,8 +102,22 @@ pub struct AmbiguityDto {
     /// True when the poses differ by more than 0.1° and `alternative_probability` ≥ 0.01,
     /// i.e. `ratio` ≥ RMS_best / √(RMS_best² + ½·σ²·ln 99) (without pixel units: `ratio` ≥
     /// 0.3). The reported pose may then be the mirror image of the true one: use it only with
-    /// other evidence, e.g. the alternative that agrees with the previous frame.
+    /// other evidence, e.g. a `prior`.
     pub ambiguous: bool,
+    /// What chose the reported pose: `fit` (the better reprojection fit) or `prior` (the
+    /// request's `prior` weighed with the fit; `alternative_probability` then includes the
+    /// prior, and the reported pose may be the one that fits slightly worse).
+    pub resolved_by: ResolvedByDto,
+}
+
+/// What chose between the two poses of the planar ambiguity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ResolvedByDto {
+    /// The better reprojection fit.
+    Fit,
+    /// The request's `prior`, weighed with the fit.
+    Prior,
 }
 
 /// The pose covariance for the stated corner noise (`reprojection` only).
@@ -189,10 +205,14 @@ pub struct DiagnosticsDto {
     "position_mm": {"x": 25.0, "y": 10.0, "z": 500.0},
     "reference_point_mm": {"x": 50.0, "y": -15.0, "z": 500.0},
     "distance_mm": 500.72,
+    "marker_size_mm": 50.0,
+    "marker_size_source": "request",
     "corners_mm": [{"label": "P1", "qr_corner": "bottom_right", "x": 50.0, "y": 35.0, "z": 500.0}],
     "rotation": {"euler_xyz_deg": {"alpha": 0.0, "beta": 0.0, "gamma": 0.0},
                  "matrix": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
                  "quaternion_wxyz": [1.0, 0.0, 0.0, 0.0]},
+    "pose_in_robot": null,
+    "robot_pose_in_world": null,
     "diagnostics": {"method": "reprojection", "converged": true, "iterations": 2,
                     "convergence_error_mm": null, "side_residuals_mm": null,
                     "reprojection_rms_px": 0.0,
@@ -202,7 +222,8 @@ pub struct DiagnosticsDto {
                                       "quaternion_wxyz": [0.9996, -0.0253, -0.0104, 0.0011]},
                                   "alternative_rms_px": 0.84, "ratio": 0.0,
                                   "rotation_difference_deg": 3.1,
-                                  "alternative_probability": 0.0, "ambiguous": false},
+                                  "alternative_probability": 0.0, "ambiguous": false,
+                                  "resolved_by": "fit"},
                     "covariance": null, "trace": null, "warnings": [], "elapsed_us": 4.2}
 }))]
 pub struct PoseResponse {
@@ -213,10 +234,21 @@ pub struct PoseResponse {
     pub reference_point_mm: Vec3Mm,
     /// Distance from the camera's optical centre to the marker centre, mm.
     pub distance_mm: f64,
+    /// The side of the QR symbol this pose was computed with, mm.
+    pub marker_size_mm: f64,
+    /// Where `marker_size_mm` came from: `request`, or the site's rule for the payload
+    /// (`site:exact`, `site:prefix`, `site:pattern`) or its default (`site:default`).
+    pub marker_size_source: MarkerSizeSourceDto,
     /// The four corners P1..P4 in the camera frame, mm.
     pub corners_mm: Vec<CornerMm>,
     /// The marker's orientation.
     pub rotation: RotationDto,
+    /// The code in the robot frame (T_robot←marker, origin at the code's centre), when the
+    /// request names a site camera with a `mount`; else null.
+    pub pose_in_robot: Option<FramePoseDto>,
+    /// The robot's pose in the warehouse frame from this code alone (T_world←robot), when
+    /// the code's payload is in the site's `map` and the camera has a `mount`; else null.
+    pub robot_pose_in_world: Option<FramePoseDto>,
     /// How the pose was found and how far to trust it.
     pub diagnostics: DiagnosticsDto,
 }
@@ -270,6 +302,7 @@ impl DiagnosticsDto {
                 rotation_difference_deg: a.rotation_difference_rad.to_degrees(),
                 alternative_probability: a.alternative_probability,
                 ambiguous: a.ambiguous,
+                resolved_by: ResolvedByDto::Fit,
             }),
             covariance: d.covariance.map(|c| CovarianceDto {
                 order: COVARIANCE_ORDER.map(str::to_owned),
@@ -309,8 +342,12 @@ impl PoseResponse {
             position_mm: estimate.centre_mm.into(),
             reference_point_mm: estimate.pose.translation_mm().into(),
             distance_mm: estimate.centre_mm.norm(),
+            marker_size_mm: marker.size_mm(),
+            marker_size_source: MarkerSizeSourceDto::Request,
             corners_mm,
             rotation: RotationDto::from_rotation(&estimate.pose.rotation()),
+            pose_in_robot: None,
+            robot_pose_in_world: None,
             diagnostics: DiagnosticsDto::new(
                 &estimate.diagnostics,
                 camera,
@@ -337,6 +374,32 @@ impl PoseResponse {
         let response = Self::new(estimate, camera, marker, elapsed_us);
         match first_non_finite(&response) {
             None => Ok(response),
+            Some(pointer) => Err(numerically_degenerate(&pointer, corners_pointer)),
+        }
+    }
+
+    /// This pose with what a site adds: the size's source, the code in the robot frame and
+    /// the robot in the world (each null when the site does not allow it), and the prior's
+    /// mark on the ambiguity.
+    ///
+    /// # Errors
+    /// 422 `numerically_degenerate` (field `corners_pointer`) when a number of the added
+    /// poses is not finite.
+    pub fn with_site(
+        mut self,
+        source: MarkerSizeSourceDto,
+        frames: (Option<FramePoseDto>, Option<FramePoseDto>),
+        resolved_by_prior: bool,
+        corners_pointer: &str,
+    ) -> Result<Self, Problem> {
+        self.marker_size_source = source;
+        (self.pose_in_robot, self.robot_pose_in_world) = frames;
+        if resolved_by_prior && let Some(a) = self.diagnostics.ambiguity.as_mut() {
+            a.resolved_by = ResolvedByDto::Prior;
+        }
+        let added = (&self.pose_in_robot, &self.robot_pose_in_world);
+        match first_non_finite(&added) {
+            None => Ok(self),
             Some(pointer) => Err(numerically_degenerate(&pointer, corners_pointer)),
         }
     }

@@ -10,6 +10,7 @@ mod openapi;
 mod render;
 mod serve;
 mod simulate;
+mod site;
 
 use clap::{Parser, Subcommand};
 use qrpose::api::{
@@ -48,6 +49,9 @@ pub enum Command {
     Healthcheck(healthcheck::HealthcheckArgs),
     /// Render a synthetic photo of a QR code at a given pose; prints its ground truth.
     Render(render::RenderArgs),
+    /// Site files (docs/site.md): `qrpose site check FILE` validates one and prints what it
+    /// resolves to.
+    Site(site::SiteArgs),
 }
 
 /// A command-line mistake in one of `estimate --image`'s parameters as the problem document
@@ -101,5 +105,6 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Openapi => openapi::run(),
         Command::Healthcheck(args) => healthcheck::run(&args),
         Command::Render(args) => render::run(&args),
+        Command::Site(args) => site::run(&args),
     }
 }

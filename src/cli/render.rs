@@ -5,8 +5,12 @@
 
 use super::estimate::{print_json, report_problem};
 use clap::Args;
+mod camera;
+
+use camera::{CameraSpec, DistortionSpec, camera, camera_json};
+use qrpose::api::camera::DistortionModelDto;
 use qrpose::api::problem::{ErrorCode, Problem};
-use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
+use qrpose::geometry::{euler::EulerXyz, marker::Marker};
 use qrpose::render::{
     CodePlacement, EcLevel, Effects, Encoding, MultiScene, Scene, SceneRanges, random_scene,
     render, render_scene,
@@ -17,7 +21,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// The single-code flags that `--scene` replaces (`--random-scene` keeps the image size).
-const SINGLE_CODE_FLAGS: [&str; 13] = [
+const SINGLE_CODE_FLAGS: [&str; 15] = [
     "payload",
     "ec_level",
     "marker_size_mm",
@@ -25,6 +29,8 @@ const SINGLE_CODE_FLAGS: [&str; 13] = [
     "fy_px",
     "cx_px",
     "cy_px",
+    "distortion_model",
+    "distortion_coefficients",
     "x_mm",
     "y_mm",
     "z_mm",
@@ -85,6 +91,15 @@ pub struct RenderArgs {
     /// Principal point, px (default: (height − 1) / 2).
     #[arg(long, allow_negative_numbers = true)]
     pub cy_px: Option<f64>,
+    /// Lens model of --distortion-coefficients: `plumb_bob` (default), `rational_polynomial`
+    /// or `equidistant` (fisheye), as docs/calibration.md defines them.
+    #[arg(long, value_enum, requires = "distortion_coefficients")]
+    pub distortion_model: Option<DistortionModelDto>,
+    /// Lens distortion coefficients in OpenCV's order, comma-separated: plumb_bob k1,k2,p1,p2,k3;
+    /// rational_polynomial k1,k2,p1,p2,k3,k4,k5,k6; equidistant k1,k2,k3,k4. A fisheye pixel
+    /// 90° or more off the axis shows the background.
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    pub distortion_coefficients: Option<Vec<f64>>,
     /// Marker centre in the camera frame, x (right), mm.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub x_mm: f64,
@@ -134,7 +149,8 @@ const SCENE_HELP: &str = r#"Scene file (--scene): every field but "codes" and ea
 "position_mm" may be left out; defaults are those of the flags.
   {
     "width_px": 1280, "height_px": 720,
-    "camera": {"fx_px": 1000, "fy_px": 1000, "cx_px": 639.5, "cy_px": 359.5},
+    "camera": {"fx_px": 1000, "fy_px": 1000, "cx_px": 639.5, "cy_px": 359.5,
+               "distortion": {"model": "plumb_bob", "coefficients": [-0.1, 0.02, 0, 0, 0]}},
     "codes": [
       {"payload": "LEFT", "ec_level": "M", "size_mm": 50,
        "position_mm": [-120, 0, 500],
@@ -143,7 +159,8 @@ const SCENE_HELP: &str = r#"Scene file (--scene): every field but "codes" and ea
     ]
   }
 position_mm is the code's centre in the camera frame (x right, y down, z forward), the
-rotation R = Rx(alpha)·Ry(beta)·Rz(gamma), as --x-mm … --gamma-deg. Codes are drawn in order,
+rotation R = Rx(alpha)·Ry(beta)·Rz(gamma), as --x-mm … --gamma-deg. The camera's
+"distortion" (none when left out) is as --distortion-model and --distortion-coefficients. Codes are drawn in order,
 a later one over an earlier one; each code's ground truth is where it was placed, hidden or
 not, so keep codes apart (their quiet zones too) unless occlusion is what is wanted."#;
 
@@ -166,29 +183,6 @@ fn default_width_px() -> u32 {
 
 fn default_height_px() -> u32 {
     720
-}
-
-/// The camera of a scene file (principal point: the image centre when left out).
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct CameraSpec {
-    fx_px: f64,
-    fy_px: f64,
-    #[serde(default)]
-    cx_px: Option<f64>,
-    #[serde(default)]
-    cy_px: Option<f64>,
-}
-
-impl Default for CameraSpec {
-    fn default() -> Self {
-        Self {
-            fx_px: 1000.0,
-            fy_px: 1000.0,
-            cx_px: None,
-            cy_px: None,
-        }
-    }
 }
 
 /// One code of a scene file, and of the `codes` printed.
@@ -234,21 +228,26 @@ fn parse_ec_level(text: &str, field: &str) -> Result<EcLevel, Problem> {
     }
 }
 
-fn camera(spec: &CameraSpec, width_px: u32, height_px: u32) -> Result<Camera, Problem> {
-    let cx = spec.cx_px.unwrap_or(f64::from(width_px) / 2.0 - 0.5);
-    let cy = spec.cy_px.unwrap_or(f64::from(height_px) / 2.0 - 0.5);
-    Camera::from_pixels(spec.fx_px, spec.fy_px, cx, cy)
-        .map_err(|e| Problem::new(ErrorCode::InvalidCameraParameter, e.to_string()))
-}
-
 fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
     let spec = CameraSpec {
         fx_px: args.fx_px,
         fy_px: args.fy_px,
         cx_px: args.cx_px,
         cy_px: args.cy_px,
+        distortion: args
+            .distortion_coefficients
+            .as_ref()
+            .map(|coefficients| DistortionSpec {
+                model: args.distortion_model.unwrap_or_default(),
+                coefficients: coefficients.clone(),
+            }),
     };
-    let camera = camera(&spec, args.width_px, args.height_px)?;
+    let camera = camera(
+        &spec,
+        args.width_px,
+        args.height_px,
+        "distortion_coefficients",
+    )?;
     let marker = Marker::try_new(args.marker_size_mm).map_err(|e| {
         Problem::new(ErrorCode::InvalidMarkerSize, e.to_string()).with_field("marker_size_mm")
     })?;
@@ -268,7 +267,12 @@ fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
 
 /// The scene of a scene file, with its codes as written.
 fn file_scene(file: SceneFile) -> Result<(MultiScene, Vec<CodeSpec>), Problem> {
-    let camera = camera(&file.camera, file.width_px, file.height_px)?;
+    let camera = camera(
+        &file.camera,
+        file.width_px,
+        file.height_px,
+        "/camera/distortion/coefficients",
+    )?;
     let mut codes = Vec::with_capacity(file.codes.len());
     for (i, c) in file.codes.iter().enumerate() {
         let marker = Marker::try_new(c.size_mm).map_err(|e| {
@@ -368,11 +372,10 @@ fn run_multi(args: &RenderArgs, effects: &Effects) -> ExitCode {
             })
         })
         .collect();
-    let c = &scene.camera;
     let out = json!({
         "image": {"path": args.out, "width_px": scene.width_px, "height_px": scene.height_px},
         "scene": source,
-        "camera": {"fx_px": c.fx(), "fy_px": c.fy(), "cx_px": c.cx(), "cy_px": c.cy()},
+        "camera": camera_json(&scene.camera),
         "effects": effects,
         "codes": codes,
     });
@@ -414,11 +417,10 @@ pub fn run(args: &RenderArgs) -> ExitCode {
         eprintln!("qrpose: cannot write {}: {e}", args.out.display());
         return ExitCode::FAILURE;
     }
-    let c = &scene.camera;
     let truth = json!({
         "image": {"path": args.out, "width_px": args.width_px, "height_px": args.height_px},
         "payload": args.payload,
-        "camera": {"fx_px": c.fx(), "fy_px": c.fy(), "cx_px": c.cx(), "cy_px": c.cy()},
+        "camera": camera_json(&scene.camera),
         "marker": {"size_mm": scene.marker.size_mm()},
         "rotation_euler_xyz_deg": {"alpha": args.alpha_deg, "beta": args.beta_deg, "gamma": args.gamma_deg},
         "effects": effects,

@@ -7,6 +7,7 @@
 use anyhow::Context;
 use qrpose::config::{ServeArgs, Settings};
 use qrpose::http::{self, AppState};
+use qrpose_site::Site;
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -27,10 +28,27 @@ fn shutdown_signal() -> anyhow::Result<impl std::future::Future<Output = ()>> {
     })
 }
 
-async fn serve(settings: Settings) -> anyhow::Result<()> {
+/// Reloads the site on every SIGHUP (`docs/site.md`, Reload), off the async threads; the
+/// outcome is logged and counted by [`AppState::reload_site`].
+fn reload_site_on_sighup(state: AppState) -> anyhow::Result<()> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut sighup = signal(SignalKind::hangup()).context("cannot listen for SIGHUP")?;
+    tokio::spawn(async move {
+        while sighup.recv().await.is_some() {
+            tracing::info!("SIGHUP received: reloading the site");
+            let state = state.clone();
+            // The outcome is logged and counted inside; a panic is the task's own.
+            let _ = tokio::task::spawn_blocking(move || state.reload_site()).await;
+        }
+    });
+    Ok(())
+}
+
+async fn serve(settings: Settings, site: Option<Site>) -> anyhow::Result<()> {
     let addr = settings.addr;
     let shutdown = shutdown_signal()?;
-    let state = AppState::new(settings).context("cannot build the service state")?;
+    let state = AppState::with_site(settings, site).context("cannot build the service state")?;
+    reload_site_on_sighup(state.clone())?;
     let listener = tokio::net::TcpListener::bind(addr)
         .await
         .with_context(|| format!("cannot listen on {addr}"))?;
@@ -46,6 +64,15 @@ async fn serve(settings: Settings) -> anyhow::Result<()> {
         request_timeout_ms = qrpose::config::millis(state.settings.request_timeout),
         "listening"
     );
+    if let Some(site) = state.site.current() {
+        tracing::info!(
+            file = %site.file().display(),
+            sha256 = site.sha256_hex(),
+            cameras = site.cameras().len(),
+            mapped_codes = site.map().len(),
+            "site loaded"
+        );
+    }
     http::serve(listener, state, shutdown)
         .await
         .context("the server failed")
@@ -59,6 +86,11 @@ pub fn run(args: ServeArgs) -> ExitCode {
             eprintln!("qrpose serve: {e}");
             return ExitCode::from(super::EXIT_BAD_INPUT);
         }
+    };
+    // A bad site file is refused before anything starts: exit 2 with file, line, reason.
+    let site = match super::site::load_optional(settings.site.as_deref()) {
+        Ok(site) => site,
+        Err(code) => return code,
     };
     if let Err(e) = qrpose::telemetry::init(settings.log_format) {
         eprintln!("qrpose serve: {e}");
@@ -76,7 +108,7 @@ pub fn run(args: ServeArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let result = runtime.block_on(serve(settings));
+    let result = runtime.block_on(serve(settings, site));
     runtime.shutdown_timeout(RUNTIME_SHUTDOWN_TIMEOUT);
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -14,6 +14,7 @@
 //! | `http_connections_closed_total` | counter | reason | connections closed by a limit |
 //! | `http_connection_limit_reached_total` | counter | | accepts that found the limit reached |
 //! | `http_accept_errors_total` | counter | | failed accepts (e.g. out of descriptors) |
+//! | `site_reloads_total` | counter | outcome | site reloads: `ok`, or `failed` (old site kept) |
 //!
 //! `route` is the route template (`/v1/pose/corners`), or `unmatched` for unknown paths, so
 //! that scanning clients cannot create unbounded label values. A new per-endpoint metric is
@@ -185,6 +186,14 @@ pub struct Metrics {
     codes_detected: Histogram,
     queue: QueueMetrics,
     connections: ConnectionMetrics,
+    site_reloads: Family<OutcomeLabels, Counter>,
+}
+
+/// Labels of `site_reloads_total`.
+#[derive(Debug, Clone, Hash, PartialEq, Eq, EncodeLabelSet)]
+pub struct OutcomeLabels {
+    /// `ok` or `failed`.
+    pub outcome: String,
 }
 
 impl Default for Metrics {
@@ -267,8 +276,15 @@ impl Metrics {
             "Failed accepts (e.g. out of file descriptors), each followed by a back-off",
             connections.accept_errors.clone(),
         );
+        let site_reloads = Family::<OutcomeLabels, Counter>::default();
+        registry.register(
+            "site_reloads",
+            "Site file reloads (SIGHUP, POST /v1/site/reload): ok, or failed (the previous site stays loaded)",
+            site_reloads.clone(),
+        );
         Self {
             registry,
+            site_reloads,
             requests,
             latency,
             iterations,
@@ -282,6 +298,26 @@ impl Metrics {
     /// The connection metrics, for the accept loop.
     pub fn connections(&self) -> ConnectionMetrics {
         self.connections.clone()
+    }
+
+    /// Counts a site reload: `ok`, or `failed` (the file was refused).
+    pub fn observe_site_reload(&self, ok: bool) {
+        let outcome = if ok { "ok" } else { "failed" };
+        self.site_reloads
+            .get_or_create(&OutcomeLabels {
+                outcome: outcome.to_owned(),
+            })
+            .inc();
+    }
+
+    /// Site reloads so far with this outcome.
+    pub fn site_reload_count(&self, ok: bool) -> u64 {
+        let outcome = if ok { "ok" } else { "failed" };
+        self.site_reloads
+            .get_or_create(&OutcomeLabels {
+                outcome: outcome.to_owned(),
+            })
+            .get()
     }
 
     /// The queue's share, for [`super::queue::EstimationQueue::new`].

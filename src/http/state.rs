@@ -3,8 +3,10 @@
 use super::metrics::Metrics;
 use super::queue::EstimationQueue;
 use crate::config::Settings;
-use std::sync::Arc;
+use qrpose_site::{Site, SiteError};
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError, RwLock};
 
 /// Whether the service still takes new work.
 #[derive(Debug, Clone, Default)]
@@ -24,12 +26,76 @@ impl Lifecycle {
     }
 }
 
+/// The loaded site, swapped whole on reload: a request takes one snapshot
+/// ([`SiteStore::current`]) and uses it throughout, so it never sees half of a reload.
+#[derive(Debug, Clone, Default)]
+pub struct SiteStore {
+    path: Option<PathBuf>,
+    current: Arc<RwLock<Option<Arc<Site>>>>,
+    /// Held while a reload reads and swaps, so that two reloads cannot finish out of order.
+    reloading: Arc<Mutex<()>>,
+}
+
+/// Why a reload did not change the site.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ReloadError {
+    /// The service runs without `--site`.
+    #[error("no site file is configured (qrpose serve --site FILE)")]
+    NoSite,
+    /// The file on disk was refused; the previous site stays loaded.
+    #[error(transparent)]
+    Invalid(#[from] SiteError),
+}
+
+impl SiteStore {
+    /// A store for the site file `path`, holding `site` (already loaded from it).
+    pub fn new(path: Option<PathBuf>, site: Option<Site>) -> Self {
+        Self {
+            path,
+            current: Arc::new(RwLock::new(site.map(Arc::new))),
+            reloading: Arc::default(),
+        }
+    }
+
+    /// The site file, if one is configured.
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
+    }
+
+    /// The site loaded now, if any.
+    pub fn current(&self) -> Option<Arc<Site>> {
+        self.current
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .clone()
+    }
+
+    /// Reads and validates the site file again and, when it is valid, swaps it in. Blocking
+    /// (file I/O): call it off the async threads.
+    ///
+    /// # Errors
+    /// [`ReloadError`]; the site loaded before stays in use.
+    pub fn reload(&self) -> Result<Arc<Site>, ReloadError> {
+        let path = self.path.as_deref().ok_or(ReloadError::NoSite)?;
+        let _one_at_a_time = self
+            .reloading
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let site = Arc::new(Site::load(path)?);
+        *self.current.write().unwrap_or_else(PoisonError::into_inner) = Some(Arc::clone(&site));
+        Ok(site)
+    }
+}
+
 /// Why the state could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum StateError {
     /// An estimation worker thread could not be spawned.
     #[error("cannot start the estimation workers: {0}")]
     Workers(#[from] std::io::Error),
+    /// The site file was refused.
+    #[error(transparent)]
+    Site(#[from] SiteError),
 }
 
 /// The state shared by all handlers; cheap to clone.
@@ -43,25 +109,69 @@ pub struct AppState {
     pub metrics: Arc<Metrics>,
     /// Ready or draining.
     pub lifecycle: Lifecycle,
+    /// The loaded site.
+    pub site: SiteStore,
 }
 
 impl AppState {
-    /// Fresh state for `settings`: an empty queue and zeroed metrics.
+    /// Fresh state for `settings`: an empty queue, zeroed metrics, and the site file of
+    /// `settings.site` loaded.
+    ///
+    /// # Errors
+    /// [`StateError`] when a worker thread cannot be spawned or the site file is refused.
+    pub fn new(settings: Settings) -> Result<Self, StateError> {
+        let site = settings.site.as_deref().map(Site::load).transpose()?;
+        Self::with_site(settings, site)
+    }
+
+    /// [`AppState::new`] with the site already loaded from `settings.site` (`qrpose serve`
+    /// loads it before starting, to exit 2 on a bad file).
     ///
     /// # Errors
     /// [`StateError`] when a worker thread cannot be spawned.
-    pub fn new(settings: Settings) -> Result<Self, StateError> {
+    pub fn with_site(settings: Settings, site: Option<Site>) -> Result<Self, StateError> {
         let metrics = Arc::new(Metrics::new());
         let queue = EstimationQueue::new(
             settings.max_concurrent_estimations.get(),
             settings.queue_length,
             metrics.queue(),
-        )?;
+        )?
+        .with_pixel_budget(settings.max_inflight_pixels)
+        .with_body_budget(settings.max_inflight_body_bytes);
+        let site = SiteStore::new(settings.site.clone(), site);
         Ok(Self {
             settings: Arc::new(settings),
             queue,
             metrics,
             lifecycle: Lifecycle::default(),
+            site,
         })
+    }
+
+    /// Reloads the site file ([`SiteStore::reload`]), logs the outcome and counts it in
+    /// `qrpose_site_reloads_total{outcome}`. Blocking: call it off the async threads.
+    ///
+    /// # Errors
+    /// [`ReloadError`]; the site loaded before stays in use.
+    pub fn reload_site(&self) -> Result<Arc<Site>, ReloadError> {
+        let outcome = self.site.reload();
+        match &outcome {
+            Ok(site) => {
+                self.metrics.observe_site_reload(true);
+                tracing::info!(
+                    file = %site.file().display(),
+                    sha256 = site.sha256_hex(),
+                    "site reloaded"
+                );
+            }
+            Err(ReloadError::NoSite) => {
+                tracing::warn!("site reload asked for, but no site file is configured");
+            }
+            Err(ReloadError::Invalid(e)) => {
+                self.metrics.observe_site_reload(false);
+                tracing::warn!(error = %e, "site reload refused; the previous site stays loaded");
+            }
+        }
+        outcome
     }
 }

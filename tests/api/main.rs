@@ -17,3 +17,5 @@ mod openapi;
 mod routing;
 mod saturation;
 mod shutdown;
+mod site;
+mod site_reload;

@@ -138,8 +138,9 @@ pub fn locate_markers(
 }
 
 /// The pose of one code from the requested points (falling back to the corners when the
-/// finder corners are incomplete), and the points used.
-fn solve(
+/// finder corners are incomplete), and the points used. [`locate_markers`] calls it for each
+/// code; a caller that sizes codes by payload calls it again with the code's own marker.
+pub fn solve(
     code: &DetectedCode,
     setup: &Setup,
     points: Points,

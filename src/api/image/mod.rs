@@ -22,6 +22,7 @@
 //!   docs/detection.md). A marker whose finder corners could not all be measured falls back
 //!   to its four corners, and `points_used` says so.
 
+pub mod per_marker;
 pub mod query;
 pub mod response;
 
@@ -30,14 +31,19 @@ pub use response::{
     ImageResponse, ImageSizeDto, ImageWarningDto, MarkerResultDto, PassDto, TimingDto,
 };
 
+use super::context::{missing_marker, resolve_camera};
+use super::frames::{PriorDto, SiteView, ValidPrior};
 use super::problem::{ErrorCode, Problem};
 use super::refusal::{problem_from_decode_error, problem_from_detect_error};
-use super::request::{CameraDto, CornersUnit, MarkerDto, SolverDto, pose_setup};
+use super::request::{CameraDto, CornersUnit, MarkerDto, PoseSetup, SolverDto};
 use crate::detect::{
     Backend, Budget, DetectorChoice, Effort, decode,
     pipeline::{Options, Points, Setup, locate_markers},
 };
 use crate::estimate::Method;
+use crate::geometry::marker::Marker;
+use per_marker::MarkerContext;
+use qrpose_site::{Site, SiteCamera};
 use serde::{Deserialize, Serialize};
 use std::time::Duration;
 use std::time::Instant;
@@ -160,10 +166,13 @@ impl From<Points> for PointsDto {
     "points": "finders"
 }))]
 pub struct ImageRequest {
-    /// Camera intrinsics of the image, pixel or sensor form.
+    /// Camera intrinsics of the image, pixel or sensor form, or `{"id": …}` naming a camera
+    /// of the loaded site.
     pub camera: CameraDto,
-    /// The printed code (every code in the image is assumed to have this size).
-    pub marker: MarkerDto,
+    /// The printed code: every code in the image is taken to have this size. Omit it with a
+    /// site, to size each code by its payload (`marker_size_source` says how).
+    #[serde(default)]
+    pub marker: Option<MarkerDto>,
     /// Solver and parameters (all optional).
     #[serde(default)]
     pub solver: SolverDto,
@@ -182,16 +191,29 @@ pub struct ImageRequest {
     /// `balanced`); at most the server's `--max-detect-ms`.
     #[schema(example = 100.0, exclusive_minimum = 0.0)]
     pub max_detect_ms: Option<f64>,
+    /// An expected orientation that picks between the two poses of the planar ambiguity of
+    /// each code (`reprojection` only).
+    #[serde(default)]
+    pub prior: Option<PriorDto>,
 }
 
 /// A validated image request: what [`locate_markers`] takes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ValidImageRequest {
-    /// Camera, marker, solver.
+    /// Camera, marker, solver. Without a request size the marker is a stand-in, and each
+    /// code is solved again with its site size.
     pub setup: Setup,
     /// Detector and points.
     pub options: Options,
+    /// The request gave the marker size (else the site sizes each code).
+    pub size_from_request: bool,
+    /// The prior, validated.
+    pub prior: Option<ValidPrior>,
 }
+
+/// The size the codes are first solved with when the site sizes each code, mm: any valid
+/// size does, since each code is solved again with its own.
+const STAND_IN_SIZE_MM: f64 = 100.0;
 
 /// The default `points` with `method = reprojection`, chosen from the accuracy benchmark
 /// (`docs/detection.md`).
@@ -206,7 +228,39 @@ impl ImageRequest {
     /// a backend not in this build; `points_need_reprojection` for `finders` with another
     /// method; `invalid_detection_budget` for a `max_detect_ms` that is not positive.
     pub fn validate(&self, max_detect_ms: f64) -> Result<ValidImageRequest, Problem> {
-        let setup = pose_setup(&self.camera, &self.marker, &self.solver, CornersUnit::Px)?;
+        self.validate_in(max_detect_ms, None)
+            .map(|(valid, _)| valid)
+    }
+
+    /// [`ImageRequest::validate`] against `site`: `camera.id` names a site camera (also
+    /// returned), and without `marker` the site sizes each code.
+    ///
+    /// # Errors
+    /// As [`ImageRequest::validate`], and `unknown_camera`, `invalid_prior`, or
+    /// `missing_field` (`/marker`) without a marker and without a site.
+    pub fn validate_in<'a>(
+        &self,
+        max_detect_ms: f64,
+        site: Option<&'a Site>,
+    ) -> Result<(ValidImageRequest, Option<&'a SiteCamera>), Problem> {
+        // Without a site a missing marker is refused first, as the required field it was.
+        if self.marker.is_none() && site.is_none() {
+            return Err(missing_marker());
+        }
+        let resolved = resolve_camera(&self.camera, CornersUnit::Px, site)?;
+        let marker = match (&self.marker, site) {
+            (Some(m), _) => m.to_marker()?,
+            (None, Some(_)) => Marker::try_new(STAND_IN_SIZE_MM).map_err(|e| {
+                Problem::new(ErrorCode::InvalidMarkerSize, e.to_string()).with_field("/marker")
+            })?,
+            (None, None) => return Err(missing_marker()),
+        };
+        let setup = PoseSetup {
+            camera: resolved.camera,
+            marker,
+            solver: self.solver.to_solver()?,
+            mm_per_px: None,
+        };
         let detector: DetectorChoice = self.detector.into();
         if let DetectorChoice::Only(backend) = detector
             && !backend.is_built()
@@ -233,7 +287,9 @@ impl ImageRequest {
             None if reprojection => DEFAULT_POINTS,
             None => PointsDto::Corners,
         };
-        Ok(ValidImageRequest {
+        let budget = self.budget(max_detect_ms)?;
+        let prior = self.prior.as_ref().map(PriorDto::validate).transpose()?;
+        let valid = ValidImageRequest {
             setup: Setup {
                 camera: setup.camera,
                 marker: setup.marker,
@@ -242,9 +298,12 @@ impl ImageRequest {
             options: Options {
                 detector,
                 points: points.into(),
-                budget: self.budget(max_detect_ms)?,
+                budget,
             },
-        })
+            size_from_request: self.marker.is_some(),
+            prior,
+        };
+        Ok((valid, resolved.site_camera))
     }
 }
 
@@ -286,7 +345,24 @@ pub fn estimate_image(
     request: &ImageRequest,
     limits: &ImageLimits,
 ) -> Result<ImageResponse, Problem> {
-    let mut valid = request.validate(limits.max_detect_ms)?;
+    estimate_image_in(bytes, request, limits, None)
+}
+
+/// [`estimate_image`] against `site`: cameras by id, each code sized by its payload, poses
+/// in the robot's and the warehouse's frame and the fused `localization`
+/// (`docs/site.md`).
+///
+/// # Errors
+/// As [`estimate_image`], and the site's refusals of the request (`unknown_camera`). A
+/// code the site cannot size is not an error: it has `pose: null` and the problem
+/// `unknown_marker_size`.
+pub fn estimate_image_in(
+    bytes: &[u8],
+    request: &ImageRequest,
+    limits: &ImageLimits,
+    site: Option<&Site>,
+) -> Result<ImageResponse, Problem> {
+    let (mut valid, site_camera) = request.validate_in(limits.max_detect_ms, site)?;
     let started = Instant::now();
     let image =
         decode::decode_gray(bytes, &limits.decode).map_err(|e| problem_from_decode_error(&e))?;
@@ -307,7 +383,14 @@ pub fn estimate_image(
         width_px: image.width(),
         height_px: image.height(),
     };
-    Ok(ImageResponse::new(&located, &valid.setup, size, decode_ms))
+    let context = MarkerContext {
+        valid: &valid,
+        view: SiteView {
+            site,
+            camera: site_camera,
+        },
+    };
+    Ok(ImageResponse::new(&located, &context, size, decode_ms))
 }
 
 /// [`estimate_image`] for a request given as flat parameters (the raw-body query string,
@@ -320,8 +403,21 @@ pub fn estimate_image_from_query(
     query: ImageQuery,
     limits: &ImageLimits,
 ) -> Result<ImageResponse, Problem> {
+    estimate_image_from_query_in(bytes, query, limits, None)
+}
+
+/// [`estimate_image_from_query`] against `site` ([`estimate_image_in`]).
+///
+/// # Errors
+/// As [`estimate_image_in`], with `field` naming the parameter.
+pub fn estimate_image_from_query_in(
+    bytes: &[u8],
+    query: ImageQuery,
+    limits: &ImageLimits,
+    site: Option<&Site>,
+) -> Result<ImageResponse, Problem> {
     query
         .into_request()
-        .and_then(|request| estimate_image(bytes, &request, limits))
+        .and_then(|request| estimate_image_in(bytes, &request, limits, site))
         .map_err(ImageQuery::problem_in_query_terms)
 }

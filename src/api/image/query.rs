@@ -8,7 +8,7 @@
 //! parameter the client wrote (`fx_px`) by [`ImageQuery::problem_in_query_terms`].
 
 use super::{DetectorDto, EffortDto, ImageRequest, PointsDto};
-use crate::api::problem::{ErrorCode, Problem};
+use crate::api::problem::Problem;
 use crate::api::request::{CameraDto, DistortionDto, MarkerDto, MethodDto, SolverDto};
 use serde::{Deserialize, Serialize};
 use utoipa::IntoParams;
@@ -20,6 +20,10 @@ use utoipa::IntoParams;
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
 pub struct ImageQuery {
+    /// A camera of the loaded site (`qrpose serve --site`), instead of the intrinsics and
+    /// distortion.
+    #[arg(long)]
+    pub camera_id: Option<String>,
     /// Horizontal focal length, px.
     #[arg(long, allow_negative_numbers = true)]
     pub fx_px: Option<f64>,
@@ -53,7 +57,8 @@ pub struct ImageQuery {
     /// Tangential coefficient p2.
     #[arg(long, allow_negative_numbers = true)]
     pub p2: Option<f64>,
-    /// Side of the QR symbol, mm (finder edge to finder edge, quiet zone excluded). Required.
+    /// Side of the QR symbol, mm (finder edge to finder edge, quiet zone excluded). Required
+    /// unless a site is loaded: then each code is sized by its payload.
     #[arg(long, allow_negative_numbers = true)]
     pub marker_size_mm: Option<f64>,
     /// Solver: `paper`, `depth-newton` or `reprojection` (default).
@@ -94,19 +99,22 @@ pub struct ImageQuery {
 /// The JSON pointer of the marker size, the one parameter whose name is not the last
 /// segment of its pointer.
 const MARKER_SIZE_POINTER: &str = "/marker/size_mm";
+/// The JSON pointer of the site camera's id.
+const CAMERA_ID_POINTER: &str = "/camera/id";
+/// The query parameter of the site camera's id.
+const CAMERA_ID_PARAMETER: &str = "camera_id";
+/// The JSON pointer of the marker as a whole (a missing marker).
+const MARKER_POINTER: &str = "/marker";
 /// The query parameter of the marker size.
 const MARKER_SIZE_PARAMETER: &str = "marker_size_mm";
 
 impl ImageQuery {
-    /// The JSON-form request these parameters stand for.
+    /// The JSON-form request these parameters stand for. Without `marker_size_mm` it has
+    /// no marker: validation then needs a site (else `missing_field`, `marker_size_mm`).
     ///
     /// # Errors
-    /// `missing_field` (field `marker_size_mm`) when the marker size is absent.
+    /// None today; the signature keeps room for checks of the flat form.
     pub fn into_request(self) -> Result<ImageRequest, Problem> {
-        let size_mm = self.marker_size_mm.ok_or_else(|| {
-            Problem::new(ErrorCode::MissingField, "marker_size_mm is required")
-                .with_field(MARKER_SIZE_PARAMETER)
-        })?;
         let any_distortion = [self.k1, self.k2, self.k3, self.p1, self.p2]
             .iter()
             .any(Option::is_some);
@@ -116,10 +124,12 @@ impl ImageQuery {
             p1: self.p1.unwrap_or(0.0),
             p2: self.p2.unwrap_or(0.0),
             k3: self.k3.unwrap_or(0.0),
+            ..DistortionDto::default()
         });
         let defaults = SolverDto::default();
         Ok(ImageRequest {
             camera: CameraDto {
+                id: self.camera_id,
                 fx_px: self.fx_px,
                 fy_px: self.fy_px,
                 cx_px: self.cx_px,
@@ -128,7 +138,7 @@ impl ImageQuery {
                 pixel_size_um: self.pixel_size_um,
                 distortion,
             },
-            marker: MarkerDto { size_mm },
+            marker: self.marker_size_mm.map(|size_mm| MarkerDto { size_mm }),
             solver: SolverDto {
                 method: self.method.unwrap_or(defaults.method),
                 initial_z_mm: self.initial_z_mm,
@@ -142,6 +152,7 @@ impl ImageQuery {
             points: self.points,
             effort: self.effort.unwrap_or_default(),
             max_detect_ms: self.max_detect_ms,
+            prior: None,
         })
     }
 
@@ -154,12 +165,16 @@ impl ImageQuery {
     }
 
     /// The parameter that stands for the value at `pointer` in [`ImageRequest`]: the last
-    /// segment of the pointer (`/camera/distortion/k1` → `k1`), except the marker size; a
+    /// segment of the pointer (`/camera/distortion/k1` → `k1`), except the marker size and
+    /// the camera id; a
     /// pointer that no single parameter stands for (`/camera`, the camera's form as a
     /// whole) has none.
     pub fn parameter_of_pointer(pointer: &str) -> Option<String> {
-        if pointer == MARKER_SIZE_POINTER {
+        if pointer == MARKER_SIZE_POINTER || pointer == MARKER_POINTER {
             return Some(MARKER_SIZE_PARAMETER.to_owned());
+        }
+        if pointer == CAMERA_ID_POINTER {
+            return Some(CAMERA_ID_PARAMETER.to_owned());
         }
         let last = pointer.rsplit('/').next()?;
         Self::parameter_names()
@@ -185,9 +200,11 @@ impl ImageQuery {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::api::problem::ErrorCode;
 
     fn every_parameter_set() -> ImageQuery {
         ImageQuery {
+            camera_id: Some("front".to_owned()),
             fx_px: Some(1.0),
             fy_px: Some(1.0),
             cx_px: Some(1.0),
@@ -261,6 +278,8 @@ mod tests {
             (Some("/camera/fx_px"), Some("fx_px")),
             (Some("/camera/distortion/k1"), Some("k1")),
             (Some("/marker/size_mm"), Some("marker_size_mm")),
+            (Some("/marker"), Some("marker_size_mm")),
+            (Some("/camera/id"), Some("camera_id")),
             (Some("/solver/max_iterations"), Some("max_iterations")),
             (Some("/detector"), Some("detector")),
             (Some("marker_size_mm"), Some("marker_size_mm")),

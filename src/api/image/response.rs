@@ -2,12 +2,13 @@
 //! refinement and pose, and the time per stage.
 
 use super::PointsDto;
+use super::per_marker::{MarkerContext, MarkerPose, marker_pose};
+use crate::api::frames::{LocalizationDto, localization};
 use crate::api::problem::Problem;
-use crate::api::refusal::marker_pose_or_problem;
 use crate::api::response::PoseResponse;
 use crate::detect::{
     corners::RefineStatus,
-    pipeline::{Located, LocatedMarker, Setup},
+    pipeline::{Located, LocatedMarker},
 };
 use crate::geometry::frames::PixelPoint;
 use base64::Engine;
@@ -104,6 +105,9 @@ pub struct ImageResponse {
     pub image: ImageSizeDto,
     /// Every QR code found (empty when none).
     pub markers: Vec<MarkerResultDto>,
+    /// The robot's pose in the warehouse frame, fused over the mapped codes of the photo
+    /// (two or more with a covariance, seen by a site camera with a mount); else null.
+    pub localization: Option<LocalizationDto>,
     /// Conditions of the whole response; empty when there are none.
     pub warnings: Vec<ImageWarningDto>,
     /// Time per stage, ms.
@@ -115,16 +119,8 @@ fn pairs<const K: usize>(points: &[PixelPoint; K]) -> [[f64; 2]; K] {
 }
 
 impl MarkerResultDto {
-    /// The wire form of marker `index` of a photo.
-    pub fn new(located: &LocatedMarker, index: usize, setup: &Setup) -> Self {
-        let (pose, problem) = marker_pose_or_problem(
-            &located.pose,
-            located.points_used,
-            &setup.camera,
-            &setup.marker,
-            located.estimate_us,
-            index,
-        );
+    /// The wire form of a code of a photo and its pose.
+    pub fn new(located: &LocatedMarker, solved: MarkerPose) -> Self {
         let code = &located.code;
         let c = &code.candidate;
         Self {
@@ -143,25 +139,42 @@ impl MarkerResultDto {
                 .map(|f| pairs(f).to_vec()),
             module_count: code.refinement.module_count,
             detector: c.backend.as_str().to_owned(),
-            points_used: located.points_used.into(),
-            pose,
-            problem,
+            points_used: solved.points_used.into(),
+            pose: solved.pose,
+            problem: solved.problem,
         }
     }
 }
 
 impl ImageResponse {
     /// The wire form of what [`locate_markers`](crate::detect::pipeline::locate_markers)
-    /// found in an image of `image` size, decoded in `decode_ms`.
-    pub fn new(located: &Located, setup: &Setup, image: ImageSizeDto, decode_ms: f64) -> Self {
+    /// found in an image of `image` size, decoded in `decode_ms`: each code sized, solved
+    /// and carried into the site's frames by `context`, and the fused localisation.
+    pub fn new(
+        located: &Located,
+        context: &MarkerContext<'_>,
+        image: ImageSizeDto,
+        decode_ms: f64,
+    ) -> Self {
+        let mut mapped = Vec::new();
+        let markers = located
+            .markers
+            .iter()
+            .enumerate()
+            .map(|(index, m)| {
+                let solved = marker_pose(m, index, context);
+                if let (Some(in_world), Some(payload)) =
+                    (solved.robot_in_world, &m.code.candidate.text)
+                {
+                    mapped.push((index, payload.clone(), in_world));
+                }
+                MarkerResultDto::new(m, solved)
+            })
+            .collect();
         Self {
             image,
-            markers: located
-                .markers
-                .iter()
-                .enumerate()
-                .map(|(index, m)| MarkerResultDto::new(m, index, setup))
-                .collect(),
+            markers,
+            localization: localization(&mapped),
             warnings: if located.budget_exhausted {
                 vec![ImageWarningDto::DetectionBudgetExhausted]
             } else {

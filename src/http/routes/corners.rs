@@ -1,7 +1,7 @@
 //! `POST /v1/pose/corners`: the pose of one QR code from its four image corners.
 
 use crate::api::{
-    estimate_corners,
+    estimate_corners_in,
     problem::{Problem, parse_json},
     request::CornersRequest,
     response::PoseResponse,
@@ -14,6 +14,7 @@ use crate::http::{
     state::AppState,
 };
 use axum::extract::State;
+use qrpose_site::Site;
 
 /// Estimate the pose of a QR code from its four corners.
 ///
@@ -53,6 +54,9 @@ use axum::extract::State;
             `self_intersecting_corners`, `non_convex_corners`, `mirrored_corners`, \
             `incomplete_camera`, `invalid_camera_parameter`, `undistortion_failed`, \
             `invalid_marker_size`, `solver_parameter_out_of_range`, `no_solution`, \
+            `unknown_camera` (`camera.id` not in the loaded site, or no site), \
+            `unknown_marker_size` (no `marker` and no site size for `payload`), \
+            `invalid_prior`, \
             `numerically_degenerate` (magnitudes such as corners at 1e150 px, beyond double \
             precision: no number of a 200 is ever NaN, infinite or a null in its place).",
             body = Problem, content_type = "application/problem+json",
@@ -78,14 +82,16 @@ pub async fn pose_from_corners(
     State(state): State<AppState>,
     JsonBody(body): JsonBody,
 ) -> Result<JsonBytes, ApiError> {
+    // One snapshot of the site for the whole request: a reload cannot change it midway.
+    let site = state.site.current();
     let (json, outcome) = match inline_request(&state, &body)? {
-        Some(request) => contained(|| estimate_to_json(&request))??,
+        Some(request) => contained(|| estimate_to_json(&request, site.as_deref()))??,
         None => {
             state
                 .queue
                 .run(move || {
                     let request = parse_json::<CornersRequest>(&body)?;
-                    estimate_to_json(&request)
+                    estimate_to_json(&request, site.as_deref())
                 })
                 .await??
         }
@@ -134,9 +140,12 @@ fn contained<T>(f: impl FnOnce() -> T) -> Result<T, ApiError> {
     contain(f).map_err(|panic| ApiError::internal(format!("estimation panicked: {panic}")))
 }
 
-/// Estimates and serialises.
-fn estimate_to_json(request: &CornersRequest) -> Result<(Vec<u8>, PoseOutcome), ApiError> {
-    let response = estimate_corners(request)?;
+/// Estimates (against the loaded site, if any) and serialises.
+fn estimate_to_json(
+    request: &CornersRequest,
+    site: Option<&Site>,
+) -> Result<(Vec<u8>, PoseOutcome), ApiError> {
+    let response = estimate_corners_in(request, site)?;
     let json = serde_json::to_vec(&response).map_err(ApiError::internal)?;
     Ok((json, PoseOutcome::from(&response)))
 }

@@ -6,10 +6,13 @@
 //! - the paper's image plane: corners in image-plane millimetres with `focal_length_mm`
 //!   (x' = x_n · f, paper Eqs. 4-6), principal point at the origin.
 //!
-//! Lens distortion, applied to normalised coordinates, is [`Distortion`] (its own module,
-//! re-exported here).
+//! Lens distortion, applied to normalised coordinates, is [`Distortion`]: `plumb_bob`,
+//! `rational_polynomial` or `equidistant` (fisheye), in its own module, re-exported here.
 
-pub use super::distortion::{Distortion, UNDISTORT_MAX_ITERATIONS, UNDISTORT_TOL};
+pub use super::distortion::{
+    Distortion, DistortionError, DistortionModel, Equidistant, PlumbBob, RationalPolynomial,
+    UNDISTORT_MAX_ITERATIONS, UNDISTORT_TOL,
+};
 use super::frames::{CameraPoint, NormalizedPoint, PixelPoint};
 use thiserror::Error;
 
@@ -47,6 +50,12 @@ pub enum CameraParam {
     P2,
     /// Radial coefficient k3.
     K3,
+    /// Coefficient k4: the rational model's denominator r² term, or the fisheye θ⁹ term.
+    K4,
+    /// Coefficient k5: the rational model's denominator r⁴ term.
+    K5,
+    /// Coefficient k6: the rational model's denominator r⁶ term.
+    K6,
 }
 
 impl CameraParam {
@@ -65,13 +74,19 @@ impl CameraParam {
             Self::P1 => "p1",
             Self::P2 => "p2",
             Self::K3 => "k3",
+            Self::K4 => "k4",
+            Self::K5 => "k5",
+            Self::K6 => "k6",
         }
     }
 
     /// Whether it is a distortion coefficient (under `distortion` in the API).
     #[must_use]
     pub const fn is_distortion(self) -> bool {
-        matches!(self, Self::K1 | Self::K2 | Self::P1 | Self::P2 | Self::K3)
+        matches!(
+            self,
+            Self::K1 | Self::K2 | Self::P1 | Self::P2 | Self::K3 | Self::K4 | Self::K5 | Self::K6
+        )
     }
 }
 
@@ -260,14 +275,18 @@ mod tests {
     use super::*;
     use nalgebra::Point3;
 
-    fn strong_lens() -> Distortion {
-        Distortion {
+    fn strong_plumb_bob() -> PlumbBob {
+        PlumbBob {
             k1: -0.28,
             k2: 0.09,
             p1: 0.0012,
             p2: -0.0009,
             k3: -0.012,
         }
+    }
+
+    fn strong_lens() -> Distortion {
+        Distortion::from(strong_plumb_bob())
     }
 
     #[test]
@@ -298,8 +317,8 @@ mod tests {
     #[test]
     fn forward_model_matches_opencv_formula_at_a_known_point() {
         // x = 0.3, y = -0.2: r² = 0.13; radial = 1 - 0.28·0.13 + 0.09·0.0169 - 0.012·0.002197
-        let d = strong_lens();
-        let p = d.distort(&NormalizedPoint::new(0.3, -0.2));
+        let d = strong_plumb_bob();
+        let p = strong_lens().distort(&NormalizedPoint::new(0.3, -0.2));
         let r2: f64 = 0.13;
         let radial = 1.0 + d.k1 * r2 + d.k2 * r2 * r2 + d.k3 * r2 * r2 * r2;
         let xd = 0.3 * radial + 2.0 * d.p1 * 0.3 * -0.2 + d.p2 * (r2 + 2.0 * 0.09);
@@ -311,10 +330,10 @@ mod tests {
     fn undistortion_refuses_points_where_the_model_folds_over() {
         let camera = Camera::from_pixels(1000.0, 1000.0, 0.0, 0.0)
             .expect("valid camera")
-            .with_distortion(Distortion {
+            .with_distortion(Distortion::PlumbBob(PlumbBob {
                 k1: -0.5,
-                ..Distortion::NONE
-            });
+                ..PlumbBob::NONE
+            }));
         // The radial factor x·(1 - 0.5 x²) peaks at x = 0.816 (0.544): no ray maps further out.
         let err = camera
             .normalize(&PixelPoint::new(700.0, 0.0))

@@ -6,8 +6,10 @@
 //!
 //! Geometry (docs/conventions.md): pixel (u, v) covers [u − 0.5, u + 0.5] × [v − 0.5, v + 0.5];
 //! each pixel is the mean of `supersample`² rays through sub-pixel points
-//! u + (a + 0.5)/s − 0.5. A ray is undistorted (the camera's Brown-Conrady model, so the
-//! image is what a lens with that distortion would see), intersected with the marker plane
+//! u + (a + 0.5)/s − 0.5. A ray is undistorted (the camera's lens model: `plumb_bob`,
+//! `rational_polynomial` or the `equidistant` fisheye, so the image is what a lens with that
+//! distortion would see; a fisheye pixel 90° or more off the axis sees the background),
+//! intersected with the marker plane
 //! and looked up in the symbol: marker frame origin P2 (top-right), x from P3 towards P2,
 //! y down the symbol, side l = the symbol without its quiet zone; module (i, j) of an
 //! N-module symbol covers x ∈ −l + l/N·[i, i + 1], y ∈ l/N·[j, j + 1]. The quiet zone

@@ -83,7 +83,11 @@ struct Prepared {
 }
 
 /// Pixels within this distance of a code's box get supersampled.
-const MARGIN_PX: f64 = 2.0;
+pub(super) const MARGIN_PX: f64 = 2.0;
+
+/// Points per side of a code's outline (corner included) over which its image box is
+/// taken: enough that a fisheye's bowed side stays within [`MARGIN_PX`] of the box.
+const OUTLINE_SAMPLES_PER_SIDE: u32 = 16;
 
 impl Prepared {
     /// The ground truth of a code and the code ready to be drawn.
@@ -103,21 +107,31 @@ impl Prepared {
         let (n, modules) = symbol_modules(&code.payload, code.ec_level)?;
         let nf = n as f64;
         // Pixels whose footprint may touch the symbol and its quiet zone get supersampled.
-        let outline: Vec<[f64; 2]> = [
+        // Lens distortion bows the outline's sides (a fisheye by tens of pixels), so the box
+        // is taken over points along every side, not only the corners.
+        let corners = [
             (-qz, -qz),
             (nf + qz, -qz),
             (nf + qz, nf + qz),
             (-qz, nf + qz),
-        ]
-        .iter()
-        .filter_map(|&(u, v)| {
-            scene
-                .camera
-                .project(&code.pose.transform(&marker_point(u, v, &code.marker, n)))
-                .map(|p| [p.u(), p.v()])
-        })
-        .collect();
-        let (umin, umax, vmin, vmax) = if outline.len() == 4 {
+        ];
+        let along_sides = (0..4).flat_map(|side| {
+            let ((u0, v0), (u1, v1)) = (corners[side], corners[(side + 1) % 4]);
+            (0..OUTLINE_SAMPLES_PER_SIDE).map(move |k| {
+                let f = f64::from(k) / f64::from(OUTLINE_SAMPLES_PER_SIDE);
+                (u0 + f * (u1 - u0), v0 + f * (v1 - v0))
+            })
+        });
+        let outline: Vec<[f64; 2]> = along_sides
+            .filter_map(|(u, v)| {
+                scene
+                    .camera
+                    .project(&code.pose.transform(&marker_point(u, v, &code.marker, n)))
+                    .map(|p| [p.u(), p.v()])
+            })
+            .collect();
+        let all_projected = outline.len() == 4 * OUTLINE_SAMPLES_PER_SIDE as usize;
+        let (umin, umax, vmin, vmax) = if all_projected {
             outline.iter().fold(
                 (
                     f64::INFINITY,

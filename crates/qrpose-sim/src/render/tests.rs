@@ -1,6 +1,7 @@
 //! Tests of the renderer through its public functions: ground truth against the pose,
-//! one edge's coverage against the geometry, a symbol out of view, and a single-code
-//! render pinned to its pixels (the same through [`render`] and [`render_scene`]).
+//! one edge's coverage against the geometry, a symbol out of view, a fisheye's bowed side,
+//! and a single-code render pinned to its pixels (the same through [`render`] and
+//! [`render_scene`]).
 
 use super::*;
 use nalgebra::Vector3;
@@ -179,4 +180,56 @@ fn render_reports_the_error_of_its_one_code_unwrapped() {
         render_scene(&multi, &Effects::default()),
         Err(RenderError::Code { index: 0, error }) if matches!(*error, RenderError::Encode { .. })
     ));
+}
+
+/// A fisheye bows a far-off-axis code's sides outward past the box of its corners; the
+/// rasteriser must still draw them (issue 14).
+#[test]
+fn a_fisheye_draws_the_bowed_side_of_a_code_far_off_the_axis() {
+    let camera = Camera::from_pixels(420.0, 420.0, 639.5, 399.5)
+        .expect("valid camera")
+        .with_distortion(qrpose_core::geometry::camera::Distortion::from(
+            qrpose_core::geometry::camera::Equidistant {
+                k1: -0.00566,
+                k2: 0.04186,
+                k3: -0.03869,
+                k4: 0.00673,
+            },
+        ));
+    let marker = Marker::try_new(50.0).expect("valid size");
+    let off_axis_rad = 60f64.to_radians();
+    let centre = Vector3::new(off_axis_rad.tan(), 0.0, 1.0).normalize() * 110.0;
+    let s = Scene {
+        payload: b"BOW".to_vec(),
+        ec_level: EcLevel::L,
+        marker,
+        camera,
+        width_px: 1280,
+        height_px: 800,
+        pose: marker.pose_centred_at(EulerXyz::from_degrees(0.0, 0.0, 0.0).to_rotation(), centre),
+    };
+    let effects = Effects::default();
+    let (n, _) = symbol_modules(&s.payload, s.ec_level).expect("encodes");
+    let qz = effects.quiet_zone_modules;
+    let nf = n as f64;
+    let pixel = |u: f64, v: f64| {
+        camera
+            .project(&s.pose.transform(&marker_point(u, v, &marker, n)))
+            .expect("in front")
+    };
+    // The outline's right side: its corners, and its middle one module inside the quiet zone.
+    let corner_u = pixel(nf + qz, -qz).u().max(pixel(nf + qz, nf + qz).u());
+    let inside = pixel(nf + qz - 1.0, nf / 2.0);
+    let bow_px = inside.u() - corner_u;
+    assert!(
+        bow_px > 2.0 * super::raster::MARGIN_PX,
+        "bow {bow_px} px: not a test of the box"
+    );
+    let rendered = render(&s, &effects).expect("renders");
+    let (x, y) = (inside.u().round() as usize, inside.v().round() as usize);
+    let level = rendered.image.get(x, y);
+    assert!(
+        (f64::from(level) - effects.light_level).abs() < 2.0,
+        "quiet zone at ({x}, {y}), {bow_px} px past the corners: grey level {level}"
+    );
 }

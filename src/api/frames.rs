@@ -1,0 +1,275 @@
+//! What a site adds to a pose (`docs/site.md`): the marker size and its source, the code's
+//! pose in the robot frame, the robot's pose in the warehouse from a mapped code, the fused
+//! `localization` of a photo, and the `prior` that resolves the planar ambiguity. The math
+//! is the qrpose-site crate's; this module is its wire form.
+
+use super::problem::{ErrorCode, Problem};
+use super::response::{COVARIANCE_ORDER, CovarianceDto, RotationDto, Vec3Mm};
+use crate::estimate::PoseEstimate;
+use nalgebra::{Quaternion, Rotation3, UnitQuaternion};
+use qrpose_site::localize::{CHI2_GATE_6DOF, fuse, residual_rotation_deg};
+use qrpose_site::prior::{RotationPrior, expected_marker_rotation};
+use qrpose_site::transform::{
+    PoseWithCovariance, marker_in_camera, pose_in_robot, robot_pose_in_world,
+};
+use qrpose_site::{Site, SiteCamera, SizeSource};
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+/// Where `marker_size_mm` came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub enum MarkerSizeSourceDto {
+    /// The request's `marker.size_mm` (`marker_size_mm`).
+    #[serde(rename = "request")]
+    Request,
+    /// The site's rule for this exact payload.
+    #[serde(rename = "site:exact")]
+    SiteExact,
+    /// The site's rule for a prefix of this payload.
+    #[serde(rename = "site:prefix")]
+    SitePrefix,
+    /// The site's rule whose pattern matches this payload.
+    #[serde(rename = "site:pattern")]
+    SitePattern,
+    /// The site's `default_size_mm`.
+    #[serde(rename = "site:default")]
+    SiteDefault,
+}
+
+impl From<SizeSource> for MarkerSizeSourceDto {
+    fn from(s: SizeSource) -> Self {
+        match s {
+            SizeSource::Request => Self::Request,
+            SizeSource::SiteExact => Self::SiteExact,
+            SizeSource::SitePrefix => Self::SitePrefix,
+            SizeSource::SitePattern => Self::SitePattern,
+            SizeSource::SiteDefault => Self::SiteDefault,
+        }
+    }
+}
+
+/// A pose in a named frame, with its covariance carried through the transform: the
+/// parameters are a small rotation about the *frame's* axes applied on the left (rad) and
+/// the position (mm), in `covariance.order` (`docs/site.md`, Frames).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct FramePoseDto {
+    /// The origin of the posed thing (the code's centre, or the robot) in the frame, mm.
+    pub position_mm: Vec3Mm,
+    /// Its orientation: p_frame = R·p_local + position.
+    pub rotation: RotationDto,
+    /// 6×6 covariance; null when the estimate has none (methods other than
+    /// `reprojection`).
+    pub covariance: Option<CovarianceDto>,
+}
+
+impl From<&PoseWithCovariance> for FramePoseDto {
+    fn from(p: &PoseWithCovariance) -> Self {
+        Self {
+            position_mm: p.pose.translation_mm.into(),
+            rotation: RotationDto::from_rotation(&p.pose.rotation),
+            covariance: p.covariance.map(|c| CovarianceDto {
+                order: COVARIANCE_ORDER.map(str::to_owned),
+                matrix: std::array::from_fn(|i| std::array::from_fn(|j| c[(i, j)])),
+            }),
+        }
+    }
+}
+
+/// One mapped code's part in the `localization`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct LocalizationCodeDto {
+    /// Index into `markers`.
+    pub marker_index: usize,
+    /// The code's payload.
+    pub payload: String,
+    /// This code's robot position minus the fused one, warehouse frame, mm.
+    pub residual_position_mm: Vec3Mm,
+    /// Angle between this code's robot rotation and the fused one, degrees.
+    pub residual_rotation_deg: f64,
+    /// Squared Mahalanobis distance of the residual (6 degrees of freedom).
+    pub chi2: f64,
+    /// `chi2` > `chi2_gate`: left out of the fused pose (with two codes that disagree, both
+    /// are flagged and both kept).
+    pub outlier: bool,
+}
+
+/// The robot's pose in the warehouse frame, fused over every mapped code of the photo,
+/// weighted by their covariances.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct LocalizationDto {
+    /// T_world←robot: the robot's origin (`position_mm`) and axes in the warehouse frame.
+    pub robot_pose_in_world: FramePoseDto,
+    /// Every mapped code that took part.
+    pub codes: Vec<LocalizationCodeDto>,
+    /// The outlier gate: the 99.9 % quantile of χ² with 6 degrees of freedom.
+    pub chi2_gate: f64,
+}
+
+/// An expected orientation that picks between the two poses of the planar ambiguity: give
+/// `marker_quaternion_wxyz` or `robot_quaternion_wxyz`, and `sigma_deg`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PriorDto {
+    /// The expected rotation of the code in the camera frame (R of p_cam = R·p_marker + t),
+    /// as a quaternion (w, x, y, z); normalised.
+    pub marker_quaternion_wxyz: Option<[f64; 4]>,
+    /// The robot's expected rotation in the warehouse frame (from odometry), (w, x, y, z):
+    /// with the camera's mount and the map it gives each mapped code's expected rotation
+    /// (needs a site, `camera.id` with a mount; unmapped codes are left alone).
+    pub robot_quaternion_wxyz: Option<[f64; 4]>,
+    /// Standard deviation of the angle to the expected rotation, degrees, in (0, 180].
+    #[schema(example = 15.0)]
+    pub sigma_deg: f64,
+}
+
+/// A validated prior.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ValidPrior {
+    /// The code's rotation in the camera frame.
+    Marker(RotationPrior),
+    /// The robot's rotation in the world, and σ (rad).
+    Robot {
+        /// R_world←robot.
+        rotation: Rotation3<f64>,
+        /// σ, rad.
+        sigma_rad: f64,
+    },
+}
+
+fn prior_problem(detail: impl Into<String>, field: &str) -> Problem {
+    Problem::new(ErrorCode::InvalidPrior, detail).with_field(format!("/prior/{field}"))
+}
+
+fn rotation_of(q: [f64; 4], field: &str) -> Result<Rotation3<f64>, Problem> {
+    let [w, x, y, z] = q;
+    let q = Quaternion::new(w, x, y, z);
+    let norm = q.norm();
+    if !norm.is_finite() || norm < qrpose_site::file::MIN_QUATERNION_NORM {
+        return Err(prior_problem(
+            format!("{field} must be a non-zero, finite quaternion, got norm {norm}"),
+            field,
+        ));
+    }
+    Ok(UnitQuaternion::from_quaternion(q).to_rotation_matrix())
+}
+
+impl PriorDto {
+    /// The validated prior.
+    ///
+    /// # Errors
+    /// 422 `invalid_prior` for neither or both rotations, a zero or non-finite quaternion
+    /// or `sigma_deg` outside (0, 180].
+    pub fn validate(&self) -> Result<ValidPrior, Problem> {
+        if !(self.sigma_deg.is_finite() && self.sigma_deg > 0.0 && self.sigma_deg <= 180.0) {
+            return Err(prior_problem(
+                format!("sigma_deg must be in (0, 180], got {}", self.sigma_deg),
+                "sigma_deg",
+            ));
+        }
+        let sigma_rad = self.sigma_deg.to_radians();
+        match (self.marker_quaternion_wxyz, self.robot_quaternion_wxyz) {
+            (Some(q), None) => Ok(ValidPrior::Marker(RotationPrior {
+                expected: rotation_of(q, "marker_quaternion_wxyz")?,
+                sigma_rad,
+            })),
+            (None, Some(q)) => Ok(ValidPrior::Robot {
+                rotation: rotation_of(q, "robot_quaternion_wxyz")?,
+                sigma_rad,
+            }),
+            (Some(_), Some(_)) => Err(prior_problem(
+                "give marker_quaternion_wxyz or robot_quaternion_wxyz, not both",
+                "robot_quaternion_wxyz",
+            )),
+            (None, None) => Err(prior_problem(
+                "give marker_quaternion_wxyz or robot_quaternion_wxyz",
+                "marker_quaternion_wxyz",
+            )),
+        }
+    }
+}
+
+/// What the site knows about the camera and the code of one pose.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SiteView<'a> {
+    /// The loaded site.
+    pub site: Option<&'a Site>,
+    /// The request's site camera (`camera.id`).
+    pub camera: Option<&'a SiteCamera>,
+}
+
+impl SiteView<'_> {
+    /// The rotation prior for the code with `payload`, if `prior` says anything about it.
+    pub fn rotation_prior(
+        &self,
+        prior: &ValidPrior,
+        payload: Option<&str>,
+    ) -> Option<RotationPrior> {
+        match *prior {
+            ValidPrior::Marker(p) => Some(p),
+            ValidPrior::Robot {
+                rotation,
+                sigma_rad,
+            } => {
+                let mount = self.camera?.mount?;
+                let mapped = self.site?.mapped(payload?)?;
+                Some(RotationPrior {
+                    expected: expected_marker_rotation(
+                        &rotation,
+                        &mount.rotation,
+                        &mapped.rotation,
+                    ),
+                    sigma_rad,
+                })
+            }
+        }
+    }
+
+    /// The code's pose in the robot frame (camera with a mount), and the robot's pose in
+    /// the world (also a mapped payload).
+    pub fn frames(
+        &self,
+        estimate: &PoseEstimate,
+        payload: Option<&str>,
+    ) -> (Option<PoseWithCovariance>, Option<PoseWithCovariance>) {
+        let Some(mount) = self.camera.and_then(|c| c.mount) else {
+            return (None, None);
+        };
+        let in_camera = marker_in_camera(estimate);
+        let in_robot = pose_in_robot(&mount, &in_camera);
+        let in_world = payload
+            .and_then(|p| self.site?.mapped(p))
+            .map(|map| robot_pose_in_world(map, &in_camera, &mount));
+        (Some(in_robot), in_world)
+    }
+}
+
+/// The fused localisation of `mapped` (marker index, payload, robot pose in the world) when
+/// two or more of them have a covariance; `None` otherwise.
+pub fn localization(mapped: &[(usize, String, PoseWithCovariance)]) -> Option<LocalizationDto> {
+    let usable: Vec<&(usize, String, PoseWithCovariance)> = mapped
+        .iter()
+        .filter(|(_, _, p)| p.covariance.is_some())
+        .collect();
+    let poses: Vec<PoseWithCovariance> = usable.iter().map(|(_, _, p)| *p).collect();
+    let fusion = fuse(&poses).ok()?;
+    Some(LocalizationDto {
+        robot_pose_in_world: FramePoseDto::from(&fusion.pose),
+        codes: usable
+            .iter()
+            .zip(&fusion.codes)
+            .map(|((index, payload, _), c)| LocalizationCodeDto {
+                marker_index: *index,
+                payload: payload.clone(),
+                residual_position_mm: Vec3Mm {
+                    x: c.residual[3],
+                    y: c.residual[4],
+                    z: c.residual[5],
+                },
+                residual_rotation_deg: residual_rotation_deg(&c.residual),
+                chi2: c.chi2,
+                outlier: c.outlier,
+            })
+            .collect(),
+        chi2_gate: CHI2_GATE_6DOF,
+    })
+}
