@@ -1,0 +1,487 @@
+// The setup page (src/http/routes/page.rs): sends one photo to POST /v1/pose/image and
+// shows what came back. Conventions as docs/conventions.md: camera frame x right, y down,
+// z forward; pixels with integer coordinates at pixel centres; p_cam = R·p_marker + t.
+// Stable hooks for tests and people: ids, and data-field / data-value on every number.
+"use strict";
+
+const IMAGE_PATH = "/v1/pose/image";
+const ANNOTATED_PATH = "/v1/pose/image/annotated";
+const SITE_PATH = "/v1/site";
+const AXIS_COLOURS = ["#ff0000", "#00c000", "#0000ff"];
+const OUTLINE_COLOUR = "#ffff00";
+const CORNER_COLOUR = "#ff00ff";
+const DEG_PER_RAD = 180 / Math.PI;
+
+const WARNING_TEXT = {
+  not_converged: "The solver did not converge: the pose is its last estimate.",
+  pose_ambiguous: "Two poses fit these corners almost equally well: use this one only with other evidence (the previous frame, a second code).",
+  behind_camera: "The pose puts a corner behind the camera: the corners, intrinsics or marker size are wrong.",
+  high_reprojection_error: "The pose does not fit the corners well (high reprojection error): check the intrinsics, the distortion and the marker size.",
+  detection_budget_exhausted: "Detection ran out of time before every pass ran: codes may have been missed. Raise the effort or max_detect_ms.",
+};
+
+const $ = (id) => document.getElementById(id);
+const state = { fileReady: Promise.resolve(), file: null, bitmap: null, response: null, camera: null, siteCameras: null, siteLoaded: false };
+
+// ---- the request -------------------------------------------------------------------------
+
+function numberOrNull(id) {
+  const text = $(id).value.trim();
+  return text === "" ? null : Number(text);
+}
+
+/** The camera as the form gives it: {request: the JSON camera, projection: for drawing}. */
+function cameraFromForm() {
+  if ($("camera-mode-id").checked) {
+    const id = $("camera-id").value.trim();
+    const known = state.siteCameras && state.siteCameras[id];
+    return { request: { id }, projection: known || null };
+  }
+  const request = {
+    fx_px: numberOrNull("fx-px"), fy_px: numberOrNull("fy-px"),
+    cx_px: numberOrNull("cx-px"), cy_px: numberOrNull("cy-px"),
+  };
+  const distortion = {};
+  let any = false;
+  for (const k of ["k1", "k2", "p1", "p2", "k3"]) {
+    const v = numberOrNull(k);
+    distortion[k] = v === null ? 0 : v;
+    any = any || v !== null;
+  }
+  if (any) request.distortion = distortion;
+  const projection = { fx: request.fx_px, fy: request.fy_px, cx: request.cx_px, cy: request.cy_px, distortion };
+  return { request, projection };
+}
+
+/** The multipart `request` part. JSON has no ';' outside strings, and inside them it is
+ * written \u003b, so the curl command's -F value needs no quoting of its own. */
+function requestJson(camera) {
+  const body = { camera: camera.request, effort: $("effort").value };
+  const size = numberOrNull("marker-size-mm");
+  if (size !== null) body.marker = { size_mm: size };
+  return JSON.stringify(body).replace(/;/g, "\\u003b");
+}
+
+function formData(json) {
+  const data = new FormData();
+  data.append("image", state.file, state.file.name);
+  data.append("request", new Blob([json], { type: "application/json" }));
+  return data;
+}
+
+function shellQuote(text) {
+  return "'" + text.replace(/'/g, "'\\''") + "'";
+}
+
+/** A curl command that sends the same multipart request. */
+function curlCommand(json) {
+  const name = state.file.name.replace(/["\\]/g, "\\$&");
+  const type = state.file.type || "application/octet-stream";
+  return [
+    "curl -sS -X POST " + shellQuote(location.origin + IMAGE_PATH) + " \\",
+    "  -F " + shellQuote('image=@"' + name + '";type=' + type) + " \\",
+    "  -F " + shellQuote("request=" + json + ";type=application/json"),
+  ].join("\n");
+}
+
+// ---- projection (docs/conventions.md, Normalised coordinates and distortion) -------------
+
+/** A camera-frame point (mm) to pixels with OpenCV's plumb_bob model; null behind the camera. */
+function project(camera, p) {
+  if (!(p[2] > 0)) return null;
+  const x = p[0] / p[2], y = p[1] / p[2];
+  const d = camera.distortion || {};
+  const k1 = d.k1 || 0, k2 = d.k2 || 0, p1 = d.p1 || 0, p2 = d.p2 || 0, k3 = d.k3 || 0;
+  const r2 = x * x + y * y;
+  const radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3));
+  const xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x);
+  const yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y;
+  return [camera.fx * xd + camera.cx, camera.fy * yd + camera.cy];
+}
+
+function vec(v) { return [v.x, v.y, v.z]; }
+
+/** The marker's side, mm: |centre − P2| = l/√2 (docs/conventions.md, Pose). */
+function markerSideMm(pose) {
+  const c = vec(pose.position_mm), t = vec(pose.reference_point_mm);
+  return Math.SQRT2 * Math.hypot(c[0] - t[0], c[1] - t[1], c[2] - t[2]);
+}
+
+/** Origin and x, y, z ends (px) of axes of length `length` from `centre` with rotation R. */
+function projectAxes(camera, centre, matrix, length) {
+  const origin = project(camera, centre);
+  if (!origin) return null;
+  const ends = [];
+  for (let axis = 0; axis < 3; axis++) {
+    const end = project(camera, [0, 1, 2].map((row) => centre[row] + matrix[row][axis] * length));
+    if (!end) return null;
+    ends.push(end);
+  }
+  return { origin, ends };
+}
+
+function axesOf(marker) {
+  const pose = marker.pose;
+  const camera = state.camera;
+  if (!pose || !camera || !(camera.fx > 0 && camera.fy > 0)) return { pose: null, alternative: null };
+  const length = markerSideMm(pose);
+  const main = projectAxes(camera, vec(pose.position_mm), pose.rotation.matrix, length);
+  const amb = pose.diagnostics && pose.diagnostics.ambiguity;
+  const alternative = amb
+    ? projectAxes(camera, vec(amb.alternative_position_mm), amb.alternative_rotation.matrix, length)
+    : null;
+  return { pose: main, alternative };
+}
+
+// ---- drawing -----------------------------------------------------------------------------
+
+function line(ctx, from, to, colour, width, dashed) {
+  ctx.strokeStyle = colour;
+  ctx.lineWidth = width;
+  ctx.setLineDash(dashed ? [width * 3, width * 2] : []);
+  ctx.beginPath();
+  ctx.moveTo(from[0] + 0.5, from[1] + 0.5);
+  ctx.lineTo(to[0] + 0.5, to[1] + 0.5);
+  ctx.stroke();
+}
+
+function drawAxes(ctx, axes, width, dashed) {
+  for (const axis of [2, 1, 0]) line(ctx, axes.origin, axes.ends[axis], AXIS_COLOURS[axis], width, dashed);
+}
+
+/** The photo with every code's outline, corners, payload and axes. Pixel coordinates are
+ * pixel centres, so canvas coordinates are the pixel's + 0.5. */
+function draw() {
+  const canvas = $("overlay");
+  const bitmap = state.bitmap, response = state.response;
+  if (!response) return;
+  const width = bitmap ? bitmap.width : response.image.width_px;
+  const height = bitmap ? bitmap.height : response.image.height_px;
+  canvas.width = width;
+  canvas.height = height;
+  const ctx = canvas.getContext("2d");
+  if (bitmap) ctx.drawImage(bitmap, 0, 0);
+  else { ctx.fillStyle = "#333"; ctx.fillRect(0, 0, width, height); }
+  const stroke = Math.max(2, Math.round(Math.min(width, height) / 240));
+  const showAlternative = $("show-alternative").checked;
+  const drawn = [];
+  response.markers.forEach((marker) => {
+    const c = marker.corners_px;
+    for (let k = 0; k < 4; k++) line(ctx, c[k], c[(k + 1) % 4], OUTLINE_COLOUR, stroke, false);
+    const axes = axesOf(marker);
+    if (axes.pose) drawAxes(ctx, axes.pose, stroke, false);
+    const alternativeDrawn = showAlternative && axes.alternative !== null;
+    if (alternativeDrawn) drawAxes(ctx, axes.alternative, stroke, true);
+    ctx.setLineDash([]);
+    ctx.strokeStyle = CORNER_COLOUR;
+    ctx.lineWidth = stroke;
+    const half = stroke * 2.5;
+    for (const p of c) ctx.strokeRect(p[0] + 0.5 - half, p[1] + 0.5 - half, 2 * half, 2 * half);
+    const text = marker.payload === null ? "(not decoded)" : marker.payload;
+    const fontPx = stroke * 7;
+    ctx.font = fontPx + "px system-ui, sans-serif";
+    const left = Math.min(...c.map((p) => p[0]));
+    const top = Math.min(...c.map((p) => p[1]));
+    const boxWidth = ctx.measureText(text).width + stroke * 4;
+    const boxTop = top - fontPx * 1.8 < 0 ? Math.max(...c.map((p) => p[1])) + fontPx * 0.5 : top - fontPx * 1.8;
+    ctx.fillStyle = "#000";
+    ctx.fillRect(left, boxTop, boxWidth, fontPx * 1.4);
+    ctx.fillStyle = "#fff";
+    ctx.fillText(text, left + stroke * 2, boxTop + fontPx * 1.1);
+    drawn.push({ pose: axes.pose, alternative: alternativeDrawn ? axes.alternative : null });
+  });
+  const missing = response.markers.some((m, k) => m.pose && !drawn[k].pose);
+  $("axes-note").textContent = missing
+    ? "Axes are not drawn for this camera: the page knows no intrinsics for it (or its lens model is not plumb_bob). Download the annotated image to see them."
+    : "";
+  canvas.dataset.axes = JSON.stringify(drawn);
+  canvas.dataset.alternativeShown = String(showAlternative);
+  canvas.dataset.state = "drawn";
+}
+
+// ---- the numbers -------------------------------------------------------------------------
+
+function el(tag, attributes, text) {
+  const node = document.createElement(tag);
+  for (const [k, v] of Object.entries(attributes || {})) node.setAttribute(k, v);
+  if (text !== undefined) node.textContent = text;
+  return node;
+}
+
+function fixed(value, digits) {
+  return value === null || value === undefined ? "—" : Number(value).toFixed(digits);
+}
+
+/** A row of the marker's list: the label, and the value shown with its unit; the exact
+ * number is in data-value. */
+function row(dl, field, label, value, digits, unit) {
+  dl.append(el("dt", {}, label));
+  const dd = el("dd", { "data-field": field }, fixed(value, digits) + (unit ? " " + unit : ""));
+  if (value !== null && value !== undefined) dd.dataset.value = String(value);
+  dl.append(dd);
+}
+
+function textRow(dl, field, label, text) {
+  dl.append(el("dt", {}, label));
+  dl.append(el("dd", { "data-field": field }, text));
+}
+
+function warningList(codes, className) {
+  const list = el("ul", { class: className || "warnings" });
+  for (const code of codes) list.append(el("li", { "data-code": code }, WARNING_TEXT[code] || code));
+  return list;
+}
+
+function standardDeviations(covariance) {
+  if (!covariance) return null;
+  const m = covariance.matrix;
+  const sd = (i) => Math.sqrt(Math.max(0, m[i][i]));
+  return { rx_deg: sd(0) * DEG_PER_RAD, ry_deg: sd(1) * DEG_PER_RAD, rz_deg: sd(2) * DEG_PER_RAD, x_mm: sd(3), y_mm: sd(4), z_mm: sd(5) };
+}
+
+function markerCard(marker, index) {
+  const card = el("article", { class: "marker", "data-marker-index": String(index) });
+  const name = marker.payload === null ? "(not decoded)" : marker.payload;
+  card.append(el("h3", {}, "Code " + (index + 1) + ": " + name));
+  const dl = el("dl");
+  textRow(dl, "payload", "payload", name);
+  textRow(dl, "detector", "detector", marker.detector + (marker.corners_refined ? ", corners refined" : ", corners not refined (" + marker.refinement + ")"));
+  const pose = marker.pose;
+  if (!pose) {
+    card.append(dl);
+    const problem = marker.problem || { title: "No pose", detail: "" };
+    const p = el("p", { class: "warnings", "data-field": "problem" });
+    p.append(el("strong", {}, problem.title + ": "), document.createTextNode(problem.detail || ""));
+    card.append(p);
+    return card;
+  }
+  const pos = pose.position_mm, euler = pose.rotation.euler_xyz_deg, diag = pose.diagnostics;
+  row(dl, "position_mm.x", "x (right)", pos.x, 1, "mm");
+  row(dl, "position_mm.y", "y (down)", pos.y, 1, "mm");
+  row(dl, "position_mm.z", "z (forward)", pos.z, 1, "mm");
+  row(dl, "distance_mm", "distance", pose.distance_mm, 1, "mm");
+  row(dl, "euler_xyz_deg.alpha", "α (about x)", euler.alpha, 2, "°");
+  row(dl, "euler_xyz_deg.beta", "β (about y)", euler.beta, 2, "°");
+  row(dl, "euler_xyz_deg.gamma", "γ (about z)", euler.gamma, 2, "°");
+  row(dl, "reprojection_rms_px", "reprojection RMS", diag.reprojection_rms_px, 3, "px");
+  textRow(dl, "method", "method", diag.method + (diag.converged ? "" : " (not converged)") + ", " + diag.iterations + " iterations");
+  const sd = standardDeviations(diag.covariance);
+  if (sd) {
+    row(dl, "sigma.x_mm", "σ x", sd.x_mm, 2, "mm");
+    row(dl, "sigma.y_mm", "σ y", sd.y_mm, 2, "mm");
+    row(dl, "sigma.z_mm", "σ z", sd.z_mm, 2, "mm");
+    row(dl, "sigma.rx_deg", "σ rotation about x", sd.rx_deg, 3, "°");
+    row(dl, "sigma.ry_deg", "σ rotation about y", sd.ry_deg, 3, "°");
+    row(dl, "sigma.rz_deg", "σ rotation about z", sd.rz_deg, 3, "°");
+  }
+  const amb = diag.ambiguity;
+  if (amb) {
+    dl.append(el("dt", {}, "ambiguous"));
+    dl.append(el("dd", { "data-field": "ambiguous", "data-value": String(amb.ambiguous), class: amb.ambiguous ? "flag-yes" : "" },
+      amb.ambiguous ? "yes: the alternative pose may be the true one" : "no"));
+    const probability = amb.alternative_probability;
+    row(dl, "alternative_probability", "alternative's probability", probability === null ? null : probability * 100, 2, "%");
+    if (probability !== null) dl.lastChild.dataset.value = String(probability);
+    const ap = amb.alternative_position_mm, ae = amb.alternative_rotation.euler_xyz_deg;
+    row(dl, "alternative_position_mm.x", "alternative x", ap.x, 1, "mm");
+    row(dl, "alternative_position_mm.y", "alternative y", ap.y, 1, "mm");
+    row(dl, "alternative_position_mm.z", "alternative z", ap.z, 1, "mm");
+    row(dl, "alternative_euler_xyz_deg.alpha", "alternative α", ae.alpha, 2, "°");
+    row(dl, "alternative_euler_xyz_deg.beta", "alternative β", ae.beta, 2, "°");
+    row(dl, "alternative_euler_xyz_deg.gamma", "alternative γ", ae.gamma, 2, "°");
+    row(dl, "alternative_rms_px", "alternative's RMS", amb.alternative_rms_px, 3, "px");
+    row(dl, "rotation_difference_deg", "rotation between the two", amb.rotation_difference_deg, 1, "°");
+  }
+  card.append(dl);
+  if (diag.warnings.length > 0) card.append(warningList(diag.warnings));
+  else card.append(el("p", { class: "hint", "data-field": "warnings" }, "No warnings."));
+  return card;
+}
+
+function timingTable(timing) {
+  const body = $("timing").tBodies[0];
+  body.replaceChildren();
+  const add = (stage, ms) => {
+    const tr = el("tr", { "data-stage": stage });
+    tr.append(el("td", {}, stage), el("td", { class: "ms", "data-value": String(ms) }, fixed(ms, 2)));
+    body.append(tr);
+  };
+  add("decode", timing.decode);
+  add("detect", timing.detect);
+  for (const pass of timing.detect_passes || []) add("  pass: " + pass.pass + " (" + pass.decoded + " read)", pass.ms);
+  add("estimate", timing.estimate);
+  if (state.roundTripMs !== undefined) add("round trip seen by this page", state.roundTripMs);
+}
+
+function showResults(response, json) {
+  state.response = response;
+  $("error").hidden = true;
+  const n = response.markers.length;
+  $("summary").textContent = n === 0
+    ? "No QR code found in this " + response.image.width_px + " × " + response.image.height_px + " photo."
+    : n + (n === 1 ? " code" : " codes") + " found in this " + response.image.width_px + " × " + response.image.height_px + " photo.";
+  $("summary").dataset.markers = String(n);
+  $("image-warnings").replaceChildren(...(response.warnings || []).map((code) => el("li", { "data-code": code }, WARNING_TEXT[code] || code)));
+  $("markers").replaceChildren(...response.markers.map(markerCard));
+  timingTable(response.timing_ms);
+  $("curl").textContent = curlCommand(json);
+  $("raw-json").textContent = JSON.stringify(response, null, 2);
+  $("results").hidden = false;
+  $("download-annotated").disabled = false;
+  draw();
+  $("results-heading").focus();
+}
+
+function showError(title, detail, meta) {
+  $("error-title").textContent = title;
+  $("error-detail").textContent = detail || "";
+  $("error-meta").textContent = meta || "";
+  $("error").hidden = false;
+  $("error").focus();
+}
+
+async function showProblem(response) {
+  const type = response.headers.get("content-type") || "";
+  if (type.includes("json")) {
+    const problem = await response.json();
+    const meta = [problem.code && "code: " + problem.code, problem.field && "field: " + problem.field, "HTTP " + response.status].filter(Boolean).join(" · ");
+    showError(problem.title || "Request refused", problem.detail, meta);
+  } else {
+    showError("HTTP " + response.status, await response.text());
+  }
+}
+
+// ---- events ------------------------------------------------------------------------------
+
+async function chooseFile(file) {
+  state.file = file || null;
+  state.bitmap = null;
+  $("download-annotated").disabled = true;
+  if (!file) return;
+  $("status").textContent = "Photo: " + file.name + " (" + Math.round(file.size / 1024) + " KiB)";
+  try {
+    state.bitmap = await createImageBitmap(file);
+  } catch (_) {
+    state.bitmap = null; // not an image this browser reads; the server will say why
+  }
+}
+
+async function send(event) {
+  event.preventDefault();
+  await state.fileReady;
+  if (!state.file) {
+    showError("No photo", "Choose a JPEG or PNG photo first, or drop one on the photo box.");
+    return;
+  }
+  const camera = cameraFromForm();
+  const json = requestJson(camera);
+  state.camera = camera.projection;
+  $("send").disabled = true;
+  $("status").textContent = "Estimating…";
+  const started = performance.now();
+  try {
+    const response = await fetch(IMAGE_PATH, { method: "POST", body: formData(json) });
+    state.roundTripMs = performance.now() - started;
+    if (response.ok) {
+      showResults(await response.json(), json);
+      $("status").textContent = "Done in " + state.roundTripMs.toFixed(0) + " ms.";
+    } else {
+      $("status").textContent = "Refused.";
+      await showProblem(response);
+    }
+  } catch (err) {
+    $("status").textContent = "";
+    showError("The server could not be reached", String(err));
+  } finally {
+    $("send").disabled = false;
+  }
+}
+
+async function downloadAnnotated() {
+  if (!state.file) return;
+  const response = await fetch(ANNOTATED_PATH, { method: "POST", body: formData(requestJson(cameraFromForm())) });
+  if (!response.ok) { await showProblem(response); return; }
+  const url = URL.createObjectURL(await response.blob());
+  const link = el("a", { href: url, download: state.file.name.replace(/\.[^.]*$/, "") + "-annotated.jpg" });
+  document.body.append(link);
+  link.click();
+  link.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 10000);
+}
+
+/** Camera ids from GET /v1/site, fetched once, when the named-camera mode is first chosen. */
+async function loadSite() {
+  if (state.siteLoaded) return;
+  state.siteLoaded = true;
+  try {
+    const response = await fetch(SITE_PATH);
+    if (!response.ok) {
+      $("site-status").textContent = "This server has no site file (GET " + SITE_PATH + " answered " + response.status + "): type the camera id.";
+      return;
+    }
+    const site = await response.json();
+    const cameras = site.cameras || {};
+    const entries = Array.isArray(cameras) ? cameras.map((c) => [c.id, c]) : Object.entries(cameras);
+    state.siteCameras = {};
+    for (const [id, c] of entries) {
+      const k = c.intrinsics || c;
+      // The page projects with plumb_bob only; other lenses get no axes here (the
+      // annotated image of the server draws them with any model).
+      const model = c.distortion && c.distortion.model;
+      if (k && k.fx_px > 0 && (!model || model === "plumb_bob")) {
+        const d = (c.distortion && (c.distortion.coefficients || c.distortion)) || {};
+        const coeff = Array.isArray(d) ? { k1: d[0], k2: d[1], p1: d[2], p2: d[3], k3: d[4] } : d;
+        state.siteCameras[id] = { fx: k.fx_px, fy: k.fy_px, cx: k.cx_px, cy: k.cy_px, distortion: coeff };
+      }
+      $("camera-ids").append(el("option", { value: id }));
+    }
+    $("site-status").textContent = entries.length + " camera(s) in the site file.";
+  } catch (err) {
+    $("site-status").textContent = "Could not read the site file: " + err;
+  }
+}
+
+function cameraModeChanged() {
+  const named = $("camera-mode-id").checked;
+  $("named-camera").hidden = !named;
+  $("intrinsics").hidden = named;
+  if (named) loadSite();
+}
+
+function setUpDrop() {
+  const zone = $("drop-zone");
+  const stop = (event) => { event.preventDefault(); event.stopPropagation(); };
+  for (const name of ["dragenter", "dragover"]) zone.addEventListener(name, (e) => { stop(e); zone.classList.add("over"); });
+  for (const name of ["dragleave", "drop"]) zone.addEventListener(name, (e) => { stop(e); zone.classList.remove("over"); });
+  zone.addEventListener("drop", (event) => {
+    const files = event.dataTransfer && event.dataTransfer.files;
+    if (files && files.length > 0) {
+      $("photo").files = files;
+      state.fileReady = chooseFile(files[0]);
+    }
+  });
+  // A photo dropped next to the box must not replace the page.
+  window.addEventListener("dragover", (e) => e.preventDefault());
+  window.addEventListener("drop", (e) => e.preventDefault());
+}
+
+async function copyCurl() {
+  try {
+    await navigator.clipboard.writeText($("curl").textContent);
+    $("status").textContent = "curl command copied.";
+  } catch (_) {
+    $("status").textContent = "Select the command and copy it by hand (the clipboard is not available here).";
+  }
+}
+
+document.addEventListener("DOMContentLoaded", () => {
+  $("setup").addEventListener("submit", send);
+  $("photo").addEventListener("change", () => { state.fileReady = chooseFile($("photo").files[0]); });
+  $("show-alternative").addEventListener("change", draw);
+  $("camera-mode-intrinsics").addEventListener("change", cameraModeChanged);
+  $("camera-mode-id").addEventListener("change", cameraModeChanged);
+  $("download-annotated").addEventListener("click", downloadAnnotated);
+  $("copy-curl").addEventListener("click", copyCurl);
+  setUpDrop();
+  document.body.dataset.ready = "true";
+});

@@ -1,0 +1,106 @@
+//! The price of the overlay: `POST /v1/pose/image/annotated` against `POST /v1/pose/image`
+//! on the same 1280×720 frame (issue 15's target: at most 1.3×), as the two routes' worker
+//! jobs run them. The HTTP layer around each is the same and costs tens of µs.
+//!
+//! ```sh
+//! taskset -c 0 cargo bench --bench annotate
+//! ```
+//! The ratio of the medians is printed at the end of the run (docs/service.md, The annotated
+//! image, gives the measured numbers).
+
+mod common;
+
+use base64::Engine;
+use common::{FRAMES, frame};
+use criterion::{Criterion, criterion_group, criterion_main};
+use qrpose::annotate::{OutputFormat, annotated_image};
+use qrpose::api::image::{ImageLimits, ImageQuery, ImageResponse, estimate_image_from_query};
+use std::hint::black_box;
+use std::time::Instant;
+
+fn query() -> ImageQuery {
+    ImageQuery {
+        fx_px: Some(1000.0),
+        fy_px: Some(1000.0),
+        cx_px: Some(639.5),
+        cy_px: Some(359.5),
+        marker_size_mm: Some(50.0),
+        ..ImageQuery::default()
+    }
+}
+
+/// What the plain route's job does: estimate and serialise.
+fn plain(jpeg: &[u8]) -> Option<(ImageResponse, Vec<u8>)> {
+    let response = estimate_image_from_query(jpeg, query(), &ImageLimits::default()).ok()?;
+    let json = serde_json::to_vec(&response).ok()?;
+    Some((response, json))
+}
+
+/// What the annotated route's job does on top: the camera, the drawing, the encoding and
+/// the result header.
+fn annotated(jpeg: &[u8], format: OutputFormat) -> Option<(Vec<u8>, String)> {
+    let (response, json) = plain(jpeg)?;
+    let camera = query()
+        .into_request()
+        .and_then(|r| r.validate(ImageLimits::default().max_detect_ms))
+        .ok()?
+        .setup
+        .camera;
+    let image = annotated_image(jpeg, &response, &camera, format).ok()?;
+    let header = base64::engine::general_purpose::URL_SAFE_NO_PAD.encode(json);
+    Some((image, header))
+}
+
+/// The median time of `f` over `runs` calls, ms.
+fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
+    let mut times: Vec<f64> = (0..runs)
+        .map(|_| {
+            let started = Instant::now();
+            f();
+            started.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[runs / 2]
+}
+
+fn bench(c: &mut Criterion) {
+    let (_, width_px, height_px, f_px) = FRAMES[0];
+    assert_eq!((width_px, height_px), (1280, 720));
+    let jpeg = frame(width_px, height_px, f_px);
+    assert!(
+        plain(&jpeg).is_some_and(|(r, _)| r.markers.len() == 1),
+        "the frame's code must be read"
+    );
+    c.bench_function("plain 1280x720", |b| b.iter(|| plain(black_box(&jpeg))));
+    c.bench_function("annotated jpeg 1280x720", |b| {
+        b.iter(|| annotated(black_box(&jpeg), OutputFormat::Jpeg))
+    });
+    c.bench_function("annotated png 1280x720", |b| {
+        b.iter(|| annotated(black_box(&jpeg), OutputFormat::Png))
+    });
+    // The ratio, from interleaved runs so that both see the same machine load.
+    let (mut plain_ms, mut annotated_ms) = (Vec::new(), Vec::new());
+    for _ in 0..15 {
+        plain_ms.push(median_ms(9, || {
+            black_box(plain(&jpeg));
+        }));
+        annotated_ms.push(median_ms(9, || {
+            black_box(annotated(&jpeg, OutputFormat::Jpeg));
+        }));
+    }
+    plain_ms.sort_by(f64::total_cmp);
+    annotated_ms.sort_by(f64::total_cmp);
+    let (p, a) = (plain_ms[7], annotated_ms[7]);
+    println!(
+        "annotated (JPEG) / plain, interleaved medians: {a:.2} ms / {p:.2} ms = {:.2}",
+        a / p
+    );
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(30).measurement_time(std::time::Duration::from_secs(4));
+    targets = bench
+}
+criterion_main!(benches);

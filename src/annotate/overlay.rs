@@ -1,0 +1,238 @@
+//! What the overlay shows, in pixel coordinates: built from an image response and the camera,
+//! drawn by [`super::raster`]. Pure geometry, no pixels.
+//!
+//! Per code: its outline through the four refined corners, a mark on each corner, its
+//! payload, and the marker frame's axes drawn from the marker centre (`position_mm`),
+//! x red, y green, z blue, each as long as the marker's side (docs/conventions.md, Marker
+//! frame: x to the symbol's right, y down the symbol, z into the printed face). The axes are
+//! the pose projected through the camera, distortion included, so they stand where the pose
+//! says, not where the corners are. A code without a pose gets its outline, marks and label.
+
+use crate::api::image::{ImageResponse, MarkerResultDto};
+use crate::api::response::{PoseResponse, Vec3Mm};
+use crate::geometry::camera::Camera;
+use crate::geometry::frames::CameraPoint;
+use nalgebra::{Point3, Vector3};
+
+/// An sRGB colour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rgb(pub [u8; 3]);
+
+/// The marker frame's x axis.
+pub const X_AXIS: Rgb = Rgb([255, 0, 0]);
+/// The marker frame's y axis.
+pub const Y_AXIS: Rgb = Rgb([0, 255, 0]);
+/// The marker frame's z axis.
+pub const Z_AXIS: Rgb = Rgb([0, 0, 255]);
+/// The outline through the four corners.
+pub const OUTLINE: Rgb = Rgb([255, 255, 0]);
+/// The mark on each refined corner.
+pub const CORNER_MARK: Rgb = Rgb([255, 0, 255]);
+/// The payload's text.
+pub const LABEL_TEXT: Rgb = Rgb([255, 255, 255]);
+/// The box behind the payload's text.
+pub const LABEL_BOX: Rgb = Rgb([0, 0, 0]);
+
+/// Text shown for a symbol that was found but not decoded.
+pub const UNDECODED_LABEL: &str = "(not decoded)";
+/// Longest payload shown, characters; longer ones end in `...`.
+pub const MAX_LABEL_CHARS: usize = 48;
+
+/// A straight stroke from `from_px` to `to_px` (pixel coordinates, integer = pixel centre).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Segment {
+    /// Start, px.
+    pub from_px: [f64; 2],
+    /// End, px.
+    pub to_px: [f64; 2],
+    /// Colour.
+    pub colour: Rgb,
+}
+
+/// Text in a box whose bottom-left corner is at `anchor_px` (or whose top-left corner is,
+/// when `below` is set).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Label {
+    /// The box's left edge and its bottom edge (top edge when `below`), px.
+    pub anchor_px: [f64; 2],
+    /// Whether the box hangs below the anchor rather than standing on it.
+    pub below: bool,
+    /// The text (ASCII; other characters are drawn as `?`).
+    pub text: String,
+}
+
+/// Everything drawn on one image, in drawing order: outlines, then axes, then labels, then
+/// corner marks on top (so a mark is never covered).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Overlay {
+    /// Outline sides and axes, drawn in order.
+    pub segments: Vec<Segment>,
+    /// Payload labels.
+    pub labels: Vec<Label>,
+    /// Refined corners, px.
+    pub corner_marks_px: Vec<[f64; 2]>,
+}
+
+/// The projected axes of one pose: the marker centre and the ends of x, y, z, px.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProjectedAxes {
+    /// The marker centre, px.
+    pub origin_px: [f64; 2],
+    /// Ends of the x, y and z axes, px.
+    pub ends_px: [[f64; 2]; 3],
+}
+
+/// The marker's side, mm, from the pose alone: the centre lies at R·(−l/2, l/2, 0) from P2
+/// (docs/conventions.md, Pose), so |centre − P2| = l/√2 whatever the method.
+pub fn marker_side_mm(pose: &PoseResponse) -> f64 {
+    let c = &pose.position_mm;
+    let p2 = &pose.reference_point_mm;
+    std::f64::consts::SQRT_2 * (c.x - p2.x).hypot(c.y - p2.y).hypot(c.z - p2.z)
+}
+
+fn point(v: &Vec3Mm) -> Point3<f64> {
+    Point3::new(v.x, v.y, v.z)
+}
+
+/// The axes of a pose with centre `centre_mm` and rotation `matrix` (row-major R), each
+/// `length_mm` long, projected through `camera`; `None` when a point is at or behind the
+/// camera.
+pub fn project_axes(
+    camera: &Camera,
+    centre_mm: &Vec3Mm,
+    matrix: &[[f64; 3]; 3],
+    length_mm: f64,
+) -> Option<ProjectedAxes> {
+    let centre = point(centre_mm);
+    let project = |p: Point3<f64>| camera.project(&CameraPoint(p)).map(|px| [px.u(), px.v()]);
+    let origin_px = project(centre)?;
+    let mut ends_px = [[0.0; 2]; 3];
+    for (axis, end) in ends_px.iter_mut().enumerate() {
+        // Column `axis` of R: the marker axis in camera coordinates.
+        let direction = Vector3::new(matrix[0][axis], matrix[1][axis], matrix[2][axis]);
+        *end = project(centre + direction * length_mm)?;
+    }
+    Some(ProjectedAxes { origin_px, ends_px })
+}
+
+/// The axes of a marker's reported pose, if it has one in front of the camera.
+pub fn pose_axes(camera: &Camera, pose: &PoseResponse) -> Option<ProjectedAxes> {
+    project_axes(
+        camera,
+        &pose.position_mm,
+        &pose.rotation.matrix,
+        marker_side_mm(pose),
+    )
+}
+
+/// The payload as shown: the text, `(not decoded)`, shortened to [`MAX_LABEL_CHARS`].
+pub fn label_text(payload: Option<&str>) -> String {
+    let text = payload.unwrap_or(UNDECODED_LABEL);
+    if text.chars().count() <= MAX_LABEL_CHARS {
+        return text.to_owned();
+    }
+    let kept: String = text.chars().take(MAX_LABEL_CHARS - 3).collect();
+    format!("{kept}...")
+}
+
+/// Where a marker's label goes: standing on the topmost corner's row at the leftmost
+/// corner's column, or hanging below the bottommost corner when there is no room above.
+fn label_for(marker: &MarkerResultDto, label_height_px: f64) -> Label {
+    let corners = &marker.corners_px;
+    let left = corners.iter().map(|c| c[0]).fold(f64::INFINITY, f64::min);
+    let top = corners.iter().map(|c| c[1]).fold(f64::INFINITY, f64::min);
+    let bottom = corners
+        .iter()
+        .map(|c| c[1])
+        .fold(f64::NEG_INFINITY, f64::max);
+    let gap_px = label_height_px / 2.0;
+    let below = top - gap_px - label_height_px < 0.0;
+    Label {
+        anchor_px: [left, if below { bottom + gap_px } else { top - gap_px }],
+        below,
+        text: label_text(marker.payload.as_deref()),
+    }
+}
+
+/// The overlay of `response`, whose poses were computed with `camera`; labels are
+/// `label_height_px` tall (for placing them clear of the code).
+pub fn overlay_of(response: &ImageResponse, camera: &Camera, label_height_px: f64) -> Overlay {
+    let mut overlay = Overlay::default();
+    for marker in &response.markers {
+        let corners = marker.corners_px;
+        for k in 0..4 {
+            overlay.segments.push(Segment {
+                from_px: corners[k],
+                to_px: corners[(k + 1) % 4],
+                colour: OUTLINE,
+            });
+        }
+        if let Some(axes) = marker.pose.as_ref().and_then(|p| pose_axes(camera, p)) {
+            // z first, x last: x, the axis most often read, stays on top.
+            for (axis, colour) in [(2, Z_AXIS), (1, Y_AXIS), (0, X_AXIS)] {
+                overlay.segments.push(Segment {
+                    from_px: axes.origin_px,
+                    to_px: axes.ends_px[axis],
+                    colour,
+                });
+            }
+        }
+        overlay.labels.push(label_for(marker, label_height_px));
+        overlay.corner_marks_px.extend(corners);
+    }
+    overlay
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::camera::Camera;
+
+    fn camera() -> Camera {
+        Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("a camera")
+    }
+
+    fn identity() -> [[f64; 3]; 3] {
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    }
+
+    #[test]
+    fn a_frontal_pose_projects_its_axes_right_down_and_onto_the_centre() {
+        let centre = Vec3Mm {
+            x: 0.0,
+            y: 0.0,
+            z: 500.0,
+        };
+        let axes = project_axes(&camera(), &centre, &identity(), 50.0).expect("in front");
+        assert_eq!(axes.origin_px, [639.5, 359.5]);
+        assert_eq!(
+            axes.ends_px[0],
+            [739.5, 359.5],
+            "x: 50 mm at 500 mm = 100 px right"
+        );
+        assert_eq!(axes.ends_px[1], [639.5, 459.5], "y: 100 px down");
+        // z points away from the camera: its end lies on the centre's ray.
+        assert_eq!(axes.ends_px[2], [639.5, 359.5]);
+    }
+
+    #[test]
+    fn axes_behind_the_camera_are_not_drawn() {
+        let centre = Vec3Mm {
+            x: 0.0,
+            y: 0.0,
+            z: 10.0,
+        };
+        let flipped = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]];
+        assert!(project_axes(&camera(), &centre, &flipped, 50.0).is_none());
+    }
+
+    #[test]
+    fn long_payloads_are_shortened_and_missing_ones_named() {
+        let long = "x".repeat(100);
+        let text = label_text(Some(&long));
+        assert_eq!(text.chars().count(), MAX_LABEL_CHARS);
+        assert!(text.ends_with("..."));
+        assert_eq!(label_text(Some("SKU-1")), "SKU-1");
+        assert_eq!(label_text(None), UNDECODED_LABEL);
+    }
+}

@@ -1,0 +1,123 @@
+//! Shared by `tests/annotated.rs`, `tests/browser/` and `tests/memory_budget.rs`: the real
+//! `qrpose serve` on a free port, and photos made by `qrpose render` with their ground truth.
+
+#![allow(dead_code)]
+
+use serde_json::Value;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+/// How long the server gets to start.
+const START_PATIENCE: Duration = Duration::from_secs(30);
+
+/// The binary under test.
+pub const BIN: &str = env!("CARGO_BIN_EXE_qrpose");
+
+/// `qrpose serve` on 127.0.0.1 and a free port; killed when dropped.
+pub struct Server {
+    child: Child,
+    /// `http://127.0.0.1:PORT`.
+    pub base_url: String,
+}
+
+impl Server {
+    /// Starts the server and waits for its `listening on` line.
+    pub fn start() -> Self {
+        Self::start_with(&[])
+    }
+
+    /// As [`Self::start`], with more `serve` flags.
+    pub fn start_with(flags: &[&str]) -> Self {
+        let mut child = Command::new(BIN)
+            .args(["serve", "--addr", "127.0.0.1:0"])
+            .args(flags)
+            .env("RUST_LOG", "warn")
+            .env_remove("QRPOSE_ADDR")
+            .env_remove("QRPOSE_SITE")
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("qrpose serve starts");
+        let stdout = child.stdout.take().expect("piped stdout");
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let mut first = String::new();
+            let _ = BufReader::new(stdout).read_line(&mut first);
+            let _ = tx.send(first);
+        });
+        let line = rx.recv_timeout(START_PATIENCE).unwrap_or_default();
+        let base_url = line
+            .trim()
+            .strip_prefix("listening on ")
+            .unwrap_or_else(|| panic!("qrpose serve printed no address: {line:?}"))
+            .to_owned();
+        Self { child, base_url }
+    }
+
+    /// The server's process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// `base_url` + `path`.
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base_url)
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A directory of this test binary's own under Cargo's test scratch space.
+pub fn scratch_dir(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&dir).expect("a scratch directory");
+    dir
+}
+
+/// The camera and marker of every rendered photo as query parameters (`qrpose render`'s
+/// defaults: 1280 × 720, f = 1000 px, principal point at the centre; a 50 mm code).
+pub const PHOTO_QUERY: &str = "fx_px=1000&fy_px=1000&cx_px=639.5&cy_px=359.5&marker_size_mm=50";
+/// The marker side of every rendered photo, mm.
+pub const MARKER_SIZE_MM: f64 = 50.0;
+/// The payload of every rendered photo.
+pub const PAYLOAD: &str = "SKU-1";
+
+/// Renders `out` (under `dir`) with `qrpose render` and these pose flags; returns its path
+/// and the ground truth it printed.
+pub fn render_photo(dir: &Path, out: &str, pose_args: &[&str]) -> (PathBuf, Value) {
+    let path = dir.join(out);
+    let output = Command::new(BIN)
+        .arg("render")
+        .arg("--out")
+        .arg(&path)
+        .args(["--payload", PAYLOAD, "--marker-size-mm", "50"])
+        .args(["--blur-px", "0.6", "--noise", "1.5", "--seed", "5"])
+        .args(pose_args)
+        .output()
+        .expect("qrpose render runs");
+    assert!(
+        output.status.success(),
+        "qrpose render: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let truth = serde_json::from_slice(&output.stdout).expect("render prints JSON");
+    (path, truth)
+}
+
+/// A blocking client that never uses a proxy.
+pub fn client() -> reqwest::blocking::Client {
+    reqwest::blocking::Client::builder()
+        .no_proxy()
+        .timeout(Duration::from_secs(60))
+        .build()
+        .expect("a client")
+}
