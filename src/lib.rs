@@ -9,6 +9,7 @@
 //! | [`sim`] | the paper's simulation: grid, Table 10, heatmaps, Tables 5-9, noisy datasets |
 //! | [`detect`] | image bytes to QR codes: decoding, detector backends, sub-pixel corners |
 //! | [`render`] | synthetic photos of a QR code at a known pose, with ground truth |
+//! | [`annotate`] | annotated images: the overlay of an image response drawn on the photo |
 //! | [`api`] | wire types shared by the HTTP service and the CLI, and their validation |
 //! | [`config`] | the settings of `qrpose serve`: flags, environment fallbacks, validation |
 //! | [`telemetry`] | logging setup: text or JSON lines on standard error |
@@ -16,6 +17,7 @@
 
 #![warn(missing_docs)]
 
+pub mod annotate;
 pub mod api;
 pub mod config;
 pub mod http;

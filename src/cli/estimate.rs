@@ -1,16 +1,19 @@
 //! `qrpose estimate REQUEST.json|-`: one corners request in, the API's response out.
 //! `qrpose estimate --image photo.jpg --fx-px … --marker-size-mm …`: one photo in, what
-//! `POST /v1/pose/image` returns out.
+//! `POST /v1/pose/image` returns out; with `--annotate OUT`, also the photo with the
+//! overlay of `POST /v1/pose/image/annotated` written to OUT.
 
 use super::{EXIT_BAD_INPUT, EXIT_BROKEN_PIPE};
 use clap::Args;
+use qrpose::annotate::{OutputFormat, annotated_image};
 use qrpose::api::{
-    estimate_corners,
-    image::{ImageLimits, ImageQuery, estimate_image_from_query},
+    estimate_corners_in,
+    image::{ImageLimits, ImageQuery, ImageResponse, estimate_image_from_query_in},
     problem::{Problem, parse_json},
 };
+use qrpose_site::Site;
 use std::io::{Read, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Arguments of `estimate`.
@@ -26,6 +29,15 @@ pub struct EstimateArgs {
     /// returns.
     #[arg(long)]
     pub image: Option<PathBuf>,
+    /// With `--image`: also write the photo with every code's outline, corners, payload and
+    /// axes drawn on it, as `POST /v1/pose/image/annotated` returns it; PNG when OUT ends in
+    /// `.png`, else JPEG.
+    #[arg(long, value_name = "OUT", requires = "image")]
+    pub annotate: Option<PathBuf>,
+    /// A site file (docs/site.md): `camera.id` / `--camera-id` name its cameras, and a
+    /// marker size omitted from the request comes from its rules for the payload.
+    #[arg(long, value_name = "FILE")]
+    pub site: Option<PathBuf>,
     /// The camera, marker, solver and detector of `--image`: the query parameters of
     /// `POST /v1/pose/image`, one flag each, under the same names (`fx_px` is `--fx-px`).
     #[command(flatten)]
@@ -90,10 +102,50 @@ fn run_image(path: &PathBuf, args: &EstimateArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    match estimate_image_from_query(&bytes, args.params.clone(), &ImageLimits::default()) {
-        Ok(response) => print_json(&response, args.pretty),
+    let site = match super::site::load_optional(args.site.as_deref()) {
+        Ok(site) => site,
+        Err(code) => return code,
+    };
+    let limits = ImageLimits::default();
+    match estimate_image_from_query_in(&bytes, args.params.clone(), &limits, site.as_ref()) {
+        Ok(response) => {
+            if let Some(out) = &args.annotate
+                && let Err(code) = write_annotated(&bytes, &response, args, site.as_ref(), out)
+            {
+                return code;
+            }
+            print_json(&response, args.pretty)
+        }
         Err(problem) => report_problem(&problem),
     }
+}
+
+/// Writes the annotated photo of `--annotate`.
+fn write_annotated(
+    bytes: &[u8],
+    response: &ImageResponse,
+    args: &EstimateArgs,
+    site: Option<&Site>,
+    out: &Path,
+) -> Result<(), ExitCode> {
+    let camera = args
+        .params
+        .clone()
+        .into_request()
+        .and_then(|request| request.validate_in(ImageLimits::default().max_detect_ms, site))
+        .map_err(|problem| report_problem(&ImageQuery::problem_in_query_terms(problem)))?
+        .0
+        .setup
+        .camera;
+    let format = OutputFormat::from_file_name(out);
+    let image = annotated_image(bytes, response, &camera, format).map_err(|e| {
+        eprintln!("qrpose: cannot annotate {}: {e}", out.display());
+        ExitCode::FAILURE
+    })?;
+    std::fs::write(out, image).map_err(|e| {
+        eprintln!("qrpose: cannot write {}: {e}", out.display());
+        ExitCode::FAILURE
+    })
 }
 
 /// Runs `estimate`.
@@ -112,7 +164,11 @@ pub fn run(args: &EstimateArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    match parse_json(&bytes).and_then(|request| estimate_corners(&request)) {
+    let site = match super::site::load_optional(args.site.as_deref()) {
+        Ok(site) => site,
+        Err(code) => return code,
+    };
+    match parse_json(&bytes).and_then(|request| estimate_corners_in(&request, site.as_ref())) {
         Ok(response) => print_json(&response, args.pretty),
         Err(problem) => report_problem(&problem),
     }

@@ -81,6 +81,30 @@ impl ApiError {
         )
     }
 
+    /// 503 `overloaded`: the images being processed already hold so much of the pixel budget
+    /// (`--max-inflight-pixels`) that `pixels` more do not fit.
+    pub fn memory_budget_spent(pixels: u64, budget_px: u64) -> Self {
+        Self::new(
+            ErrorCode::Overloaded,
+            format!(
+                "the images in progress leave less than the {pixels} pixels of this one free \
+                 of the budget of {budget_px} (--max-inflight-pixels); retry after {RETRY_AFTER_S} s"
+            ),
+        )
+    }
+
+    /// 503 `overloaded`: the image bodies held already leave fewer than `bytes` of the body
+    /// budget (`--max-inflight-body-bytes`) free.
+    pub fn body_budget_spent(bytes: u64, budget_bytes: u64) -> Self {
+        Self::new(
+            ErrorCode::Overloaded,
+            format!(
+                "the image bodies in progress leave less than the {bytes} bytes of this one free \
+                 of the budget of {budget_bytes} (--max-inflight-body-bytes); retry after {RETRY_AFTER_S} s"
+            ),
+        )
+    }
+
     /// 503: the request did not finish within `timeout_ms`.
     pub fn timeout(timeout_ms: u64) -> Self {
         Self::new(

@@ -75,7 +75,8 @@ pub fn require_json(headers: &HeaderMap) -> Result<(), ApiError> {
     }
 }
 
-fn declared_length(headers: &HeaderMap) -> Option<usize> {
+/// The body length a request declares (`Content-Length`), if any.
+pub fn declared_length(headers: &HeaderMap) -> Option<usize> {
     headers
         .get(header::CONTENT_LENGTH)?
         .to_str()
@@ -130,9 +131,22 @@ pub async fn read_body(request: Request, limit_bytes: usize) -> Result<Bytes, Bo
 /// # Errors
 /// As [`read_body`].
 pub async fn buffer_body(request: Request, limit_bytes: usize) -> Result<Request, BodyError> {
+    buffer_body_with(request, limit_bytes, |bytes| bytes).await
+}
+
+/// As [`buffer_body`], the bytes passed through `wrap` before they become the body again
+/// (to tie something to their lifetime, as [`Bytes::from_owner`] does).
+///
+/// # Errors
+/// As [`read_body`].
+pub async fn buffer_body_with(
+    request: Request,
+    limit_bytes: usize,
+    wrap: impl FnOnce(Bytes) -> Bytes,
+) -> Result<Request, BodyError> {
     let (parts, body) = request.into_parts();
     let bytes = read_limited(&parts.headers, body, limit_bytes).await?;
-    Ok(Request::from_parts(parts, Body::from(bytes)))
+    Ok(Request::from_parts(parts, Body::from(wrap(bytes))))
 }
 
 /// Reads and discards the body of a request that is refused without it (415), at most

@@ -16,6 +16,7 @@
 use super::{
     error::ApiError,
     extract::{self, BodyError},
+    queue::PixelPermit,
     state::AppState,
 };
 use crate::api::{
@@ -58,14 +59,35 @@ pub enum ImageInput {
     },
 }
 
+impl ImageInput {
+    /// The image bytes, whichever form the body had.
+    pub fn image(&self) -> &Bytes {
+        match self {
+            Self::Raw { image, .. } | Self::Multipart { image, .. } => image,
+        }
+    }
+
+    /// What this image weighs against the pixel budget of the estimation queue
+    /// ([`crate::detect::decode::admission_pixels`]: its declared size, WebP twice).
+    pub fn admission_pixels(&self, max_pixels: u64) -> u64 {
+        crate::detect::decode::admission_pixels(self.image(), max_pixels)
+    }
+}
+
 impl FromRequest<AppState> for ImageInput {
     type Rejection = ApiError;
 
     async fn from_request(request: Request, state: &AppState) -> Result<Self, ApiError> {
         let limit_bytes = state.settings.body_limit_bytes;
         match extract::media_type(request.headers()).as_deref() {
-            Some(JPEG | PNG) => raw_input(request, limit_bytes).await,
-            Some(MULTIPART) => multipart_input(request, state).await,
+            Some(JPEG | PNG) => {
+                let permit = take_body_bytes(&request, state)?;
+                raw_input(request, limit_bytes, permit).await
+            }
+            Some(MULTIPART) => {
+                let permit = take_body_bytes(&request, state)?;
+                multipart_input(request, state, permit).await
+            }
             got => {
                 let refusal = ApiError::unsupported_media_type(got, ACCEPTED);
                 extract::discard_body(request, limit_bytes).await;
@@ -75,12 +97,49 @@ impl FromRequest<AppState> for ImageInput {
     }
 }
 
+/// The share of the body budget ([`crate::http::queue::EstimationQueue::take_body_bytes`])
+/// that `request`'s body may need: its declared length, or the body limit when it declares
+/// none (chunked). Taken before a byte is read, so that bodies being read count too.
+fn take_body_bytes(request: &Request, state: &AppState) -> Result<PixelPermit, ApiError> {
+    let limit_bytes = state.settings.body_limit_bytes;
+    let bytes =
+        extract::declared_length(request.headers()).map_or(limit_bytes, |n| n.min(limit_bytes));
+    state
+        .queue
+        .take_body_bytes(u64::try_from(bytes).unwrap_or(u64::MAX))
+}
+
+/// Body bytes that give their share of the body budget back when the last reference to them
+/// is dropped (the image part of a multipart body refers into it too).
+struct Budgeted {
+    bytes: Bytes,
+    _permit: PixelPermit,
+}
+
+impl AsRef<[u8]> for Budgeted {
+    fn as_ref(&self) -> &[u8] {
+        &self.bytes
+    }
+}
+
+fn budgeted(bytes: Bytes, permit: PixelPermit) -> Bytes {
+    Bytes::from_owner(Budgeted {
+        bytes,
+        _permit: permit,
+    })
+}
+
 /// The raw-body form: the image bytes and the query parameters.
-async fn raw_input(request: Request, limit_bytes: usize) -> Result<ImageInput, ApiError> {
+async fn raw_input(
+    request: Request,
+    limit_bytes: usize,
+    permit: PixelPermit,
+) -> Result<ImageInput, ApiError> {
     let query = request.uri().query().map(str::to_owned);
     let image = extract::read_body(request, limit_bytes)
         .await
         .map_err(|e| body_error(e, ErrorCode::UndecodableImage))?;
+    let image = budgeted(image, permit);
     let query = extract::parse_query::<ImageQuery>(query.as_deref())?;
     Ok(ImageInput::Raw {
         image,
@@ -89,7 +148,11 @@ async fn raw_input(request: Request, limit_bytes: usize) -> Result<ImageInput, A
 }
 
 /// The multipart form: the `image` and `request` parts, each exactly once.
-async fn multipart_input(request: Request, state: &AppState) -> Result<ImageInput, ApiError> {
+async fn multipart_input(
+    request: Request,
+    state: &AppState,
+    permit: PixelPermit,
+) -> Result<ImageInput, ApiError> {
     let limit_bytes = state.settings.body_limit_bytes;
     if let Some(parameter) = first_query_parameter(request.uri().query()) {
         extract::discard_body(request, limit_bytes).await;
@@ -103,7 +166,7 @@ async fn multipart_input(request: Request, state: &AppState) -> Result<ImageInpu
         .with_field(parameter)
         .into());
     }
-    let request = extract::buffer_body(request, limit_bytes)
+    let request = extract::buffer_body_with(request, limit_bytes, |body| budgeted(body, permit))
         .await
         .map_err(|e| body_error(e, ErrorCode::MalformedMultipart))?;
     let mut multipart = Multipart::from_request(request, state)

@@ -18,6 +18,7 @@ pub mod image_input;
 pub mod metrics;
 pub mod middleware;
 pub mod openapi;
+pub mod openapi_strict;
 pub mod queue;
 pub mod routes;
 pub mod state;
@@ -43,6 +44,7 @@ pub fn router(state: AppState) -> Router {
     let (routes, _) = openapi::api_router().split_for_parts();
     let app = routes
         .merge(routes::docs::swagger_ui())
+        .merge(routes::page::assets())
         .method_not_allowed_fallback(method_not_allowed)
         .fallback(not_found);
     with_middleware(app, state)

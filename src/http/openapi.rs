@@ -8,7 +8,7 @@
 //! made from the routes, so the route that serves it lives with it rather than among them.
 
 use super::error::ApiError;
-use super::routes::{corners, health, image, metrics};
+use super::routes::{annotated, corners, health, image, metrics, page, site};
 use super::state::AppState;
 use axum::body::Bytes;
 use axum::http::header;
@@ -47,6 +47,8 @@ documentation is at `/docs`.",
     tags(
         (name = "pose", description = "Pose estimation."),
         (name = "operations", description = "Health, readiness, metrics and this document."),
+        (name = "site", description = "The loaded site: cameras, marker sizes, mounts, map (docs/site.md)."),
+        (name = "page", description = "The setup page for people (HTML)."),
     )
 )]
 pub struct ApiDoc;
@@ -56,16 +58,22 @@ pub fn api_router() -> OpenApiRouter<AppState> {
     OpenApiRouter::with_openapi(ApiDoc::openapi())
         .routes(routes!(corners::pose_from_corners))
         .routes(routes!(image::pose_from_image))
+        .routes(routes!(annotated::pose_from_image_annotated))
+        .routes(routes!(page::setup_page))
         .routes(routes!(health::healthz))
         .routes(routes!(health::readyz))
+        .routes(routes!(site::site))
+        .routes(routes!(site::reload_site))
         .routes(routes!(metrics::metrics))
         .routes(routes!(serve_openapi_json))
 }
 
-/// The OpenAPI document.
+/// The OpenAPI document as utoipa derives it; what is served and committed is this made
+/// strict by [`super::openapi_strict::tighten`] ([`openapi_json`]).
 pub fn openapi() -> utoipa::openapi::OpenApi {
     let mut doc = api_router().into_openapi();
     image::document_part_media_types(&mut doc);
+    annotated::document_part_media_types(&mut doc);
     doc
 }
 
@@ -75,7 +83,9 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
 /// # Errors
 /// Only if the document cannot be serialised, which a derived document always can.
 pub fn openapi_json() -> Result<String, serde_json::Error> {
-    openapi().to_pretty_json().map(|json| json + "\n")
+    let mut doc = serde_json::to_value(openapi())?;
+    super::openapi_strict::tighten(&mut doc);
+    serde_json::to_string_pretty(&doc).map(|json| json + "\n")
 }
 
 /// The OpenAPI 3.1 document of this API (identical to `qrpose openapi`).

@@ -9,8 +9,9 @@ async fn unknown_routes_get_404_not_found() {
     // Arrange
     let app = spawn_app().await;
 
+    // (`/` is the setup page.)
     for path in [
-        "/",
+        "/index.html",
         "/v1/pose",
         "/v1/pose/corners/extra",
         "/v2/pose/corners",

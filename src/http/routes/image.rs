@@ -5,8 +5,8 @@
 
 use crate::api::{
     image::{
-        ImageLimits, ImageQuery, ImageRequest, ImageResponse, estimate_image,
-        estimate_image_from_query,
+        ImageLimits, ImageQuery, ImageRequest, ImageResponse, estimate_image_from_query_in,
+        estimate_image_in,
     },
     problem::{Problem, parse_json},
 };
@@ -19,6 +19,7 @@ use crate::http::{
     state::AppState,
 };
 use axum::extract::State;
+use qrpose_site::Site;
 use utoipa::ToSchema;
 use utoipa::openapi::{OpenApi, RefOr, encoding::Encoding};
 
@@ -121,7 +122,9 @@ pub fn document_part_media_types(doc: &mut OpenApi) {
             `missing_field` (`marker_size_mm`, or the part `image` or `request`), \
             `unknown_field`, `invalid_type`, `unknown_variant`, `non_finite_number`, \
             `incomplete_camera`, `invalid_camera_parameter`, `invalid_marker_size`, \
-            `solver_parameter_out_of_range`.",
+            `solver_parameter_out_of_range`, `unknown_camera` (`camera_id` / `camera.id` not \
+            in the loaded site, or no site), `invalid_prior`. A code the site cannot size is \
+            not a refusal: its `pose` is null and its `problem` is `unknown_marker_size`.",
             body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:qrpose:problem:undecodable_image",
                 "title": "Undecodable image", "status": 422,
@@ -148,9 +151,14 @@ pub async fn pose_from_image(
         },
         max_detect_ms: state.settings.max_detect.as_secs_f64() * 1e3,
     };
+    // One snapshot of the site for the whole request: a reload cannot change it midway.
+    let site = state.site.current();
     let (json, outcome) = state
         .queue
-        .run(move || estimate_to_json(input, &limits))
+        .run_image(
+            input.admission_pixels(limits.decode.max_pixels),
+            move || estimate_to_json(input, &limits, site.as_deref()),
+        )
         .await??;
     state.metrics.observe_codes_detected(outcome.codes);
     for pose in &outcome.poses {
@@ -165,20 +173,23 @@ struct Outcome {
     poses: Vec<PoseOutcome>,
 }
 
-/// Parses the request part (multipart), decodes, detects, estimates and serialises, all on
-/// the estimation worker.
+/// Parses the request part (multipart), decodes, detects, estimates (against the loaded
+/// site, if any) and serialises, all on the estimation worker.
 fn estimate_to_json(
     input: ImageInput,
     limits: &ImageLimits,
+    site: Option<&Site>,
 ) -> Result<(Vec<u8>, Outcome), ApiError> {
     let response: ImageResponse = match input {
-        ImageInput::Raw { image, query } => estimate_image_from_query(&image, *query, limits)?,
+        ImageInput::Raw { image, query } => {
+            estimate_image_from_query_in(&image, *query, limits, site)?
+        }
         ImageInput::Multipart {
             image,
             request_json,
         } => {
             let request = parse_json::<ImageRequest>(&request_json)?;
-            estimate_image(&image, &request, limits)?
+            estimate_image_in(&image, &request, limits, site)?
         }
     };
     let json = serde_json::to_vec(&response).map_err(ApiError::internal)?;
@@ -195,4 +206,42 @@ fn estimate_to_json(
             poses,
         },
     ))
+}
+
+/// The response of `input` and the camera its poses were computed with, for routes that
+/// draw the poses (`POST /v1/pose/image/annotated`), against `site` (the camera may be a
+/// site camera by id). The same request parsing, validation and problems as
+/// [`pose_from_image`]; runs on the estimation worker.
+///
+/// # Errors
+/// The problems of [`pose_from_image`] (a query's `field` names its parameter).
+pub fn estimate_with_camera_in(
+    input: &ImageInput,
+    limits: &ImageLimits,
+    site: Option<&Site>,
+) -> Result<(ImageResponse, crate::geometry::camera::Camera), ApiError> {
+    let (image, request, from_query) = match input {
+        ImageInput::Raw { image, query } => {
+            let request = ImageQuery::clone(query)
+                .into_request()
+                .map_err(ImageQuery::problem_in_query_terms)?;
+            (image, request, true)
+        }
+        ImageInput::Multipart {
+            image,
+            request_json,
+        } => (image, parse_json::<ImageRequest>(request_json)?, false),
+    };
+    let as_sent = |problem: Problem| {
+        if from_query {
+            ImageQuery::problem_in_query_terms(problem)
+        } else {
+            problem
+        }
+    };
+    let response = estimate_image_in(image, &request, limits, site).map_err(as_sent)?;
+    let (valid, _) = request
+        .validate_in(limits.max_detect_ms, site)
+        .map_err(as_sent)?;
+    Ok((response, valid.setup.camera))
 }

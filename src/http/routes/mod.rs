@@ -1,7 +1,10 @@
 //! One file per endpoint: the handler and its `#[utoipa::path]`.
 
+pub mod annotated;
 pub mod corners;
 pub mod docs;
 pub mod health;
 pub mod image;
 pub mod metrics;
+pub mod page;
+pub mod site;

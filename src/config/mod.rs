@@ -130,6 +130,28 @@ pub struct ServeArgs {
     #[arg(long, env = "QRPOSE_MAX_CONNECTIONS", default_value_t = DEFAULT_MAX_CONNECTIONS)]
     pub max_connections: usize,
     // ---- end of connection limits
+
+    // ---- Memory budget (issue 16)
+    /// Image pixels admitted at once (running and queued image requests, by declared width
+    /// × height; WebP counts twice): beyond it 503 `overloaded`. Bounds the image path's
+    /// memory (about 3 bytes a pixel, docs/deploy.md) [default: estimation workers ×
+    /// --max-image-pixels].
+    #[arg(long, env = "QRPOSE_MAX_INFLIGHT_PIXELS")]
+    pub max_inflight_pixels: Option<u64>,
+    /// Image request bodies held at once, bytes (being read, waiting and running; by
+    /// declared `Content-Length`, the body limit when none): beyond it 503 `overloaded`
+    /// before the body is read [default: (estimation workers + 2) × --body-limit-bytes].
+    #[arg(long, env = "QRPOSE_MAX_INFLIGHT_BODY_BYTES")]
+    pub max_inflight_body_bytes: Option<u64>,
+    // ---- end of memory budget
+
+    // ---- Site (issue 14)
+    /// A site file (YAML, docs/site.md): cameras by id, marker sizes by payload, mounts and
+    /// the map. Validated at start (a bad file: exit 2 with file, line and reason); reloaded
+    /// on SIGHUP and `POST /v1/site/reload`.
+    #[arg(long, env = "QRPOSE_SITE")]
+    pub site: Option<std::path::PathBuf>,
+    // ---- end of site
 }
 
 impl Default for ServeArgs {
@@ -149,6 +171,11 @@ impl Default for ServeArgs {
             header_read_timeout_ms: DEFAULT_HEADER_READ_TIMEOUT_MS,
             idle_timeout_ms: DEFAULT_IDLE_TIMEOUT_MS,
             max_connections: DEFAULT_MAX_CONNECTIONS,
+            // Memory budget (issue 16).
+            max_inflight_pixels: None,
+            max_inflight_body_bytes: None,
+            // Site (issue 14).
+            site: None,
         }
     }
 }
@@ -200,6 +227,18 @@ pub struct Settings {
     /// Open client connections at most.
     pub max_connections: NonZeroUsize,
     // ---- end of connection limits
+
+    // ---- Memory budget (issue 16)
+    /// Image pixels admitted at once (weighted: WebP twice).
+    pub max_inflight_pixels: u64,
+    /// Image request bodies held at once, bytes.
+    pub max_inflight_body_bytes: u64,
+    // ---- end of memory budget
+
+    // ---- Site (issue 14)
+    /// The site file, loaded at start and on reload.
+    pub site: Option<std::path::PathBuf>,
+    // ---- end of site
 }
 
 impl Default for Settings {
@@ -221,8 +260,32 @@ impl Default for Settings {
             idle_timeout: Duration::from_millis(DEFAULT_IDLE_TIMEOUT_MS),
             max_connections: NonZeroUsize::new(DEFAULT_MAX_CONNECTIONS)
                 .unwrap_or(NonZeroUsize::MIN),
+            // Memory budget (issue 16).
+            max_inflight_pixels: default_inflight_pixels(cpus, DEFAULT_MAX_IMAGE_PIXELS),
+            max_inflight_body_bytes: default_inflight_body_bytes(cpus, DEFAULT_BODY_LIMIT_BYTES),
+            // Site (issue 14).
+            site: None,
         }
     }
+}
+
+/// The default pixel budget: one largest image per estimation worker.
+fn default_inflight_pixels(workers: NonZeroUsize, max_image_pixels: u64) -> u64 {
+    u64::try_from(workers.get())
+        .unwrap_or(u64::MAX)
+        .saturating_mul(max_image_pixels)
+}
+
+/// The default body budget: a largest body for each estimation worker and two more (being
+/// read while the workers are busy).
+fn default_inflight_body_bytes(workers: NonZeroUsize, body_limit_bytes: usize) -> u64 {
+    u64::try_from(
+        workers
+            .get()
+            .saturating_add(2)
+            .saturating_mul(body_limit_bytes),
+    )
+    .unwrap_or(u64::MAX)
 }
 
 /// `duration` in whole milliseconds, for logs and messages (saturates at `u64::MAX`).
@@ -266,7 +329,7 @@ impl TryFrom<ServeArgs> for Settings {
     type Error = ConfigError;
 
     fn try_from(args: ServeArgs) -> Result<Self, ConfigError> {
-        Ok(Self {
+        Self {
             addr: args.addr,
             body_limit_bytes: in_range(
                 "body-limit-bytes",
@@ -325,112 +388,44 @@ impl TryFrom<ServeArgs> for Settings {
                 MAX_MAX_CONNECTIONS,
             )?)
             .unwrap_or(NonZeroUsize::MIN),
-        })
+            // Memory budget (issue 16): set from the other settings just below.
+            max_inflight_pixels: 0,
+            max_inflight_body_bytes: 0,
+            // Site (issue 14): the file is read by the caller, which owns the exit code.
+            site: args.site,
+        }
+        .with_memory_budget(args.max_inflight_pixels, args.max_inflight_body_bytes)
+    }
+}
+
+impl Settings {
+    /// The memory budget: pixels as given (at least one largest image, so that every
+    /// accepted image can run) or one largest image per estimation worker; body bytes as
+    /// given (at least one largest body) or [`default_inflight_body_bytes`].
+    fn with_memory_budget(
+        mut self,
+        max_inflight_pixels: Option<u64>,
+        max_inflight_body_bytes: Option<u64>,
+    ) -> Result<Self, ConfigError> {
+        let body_limit = u64::try_from(self.body_limit_bytes).unwrap_or(u64::MAX);
+        self.max_inflight_body_bytes = match max_inflight_body_bytes {
+            Some(bytes) => in_range("max-inflight-body-bytes", bytes, body_limit, u64::MAX / 8)?,
+            None => {
+                default_inflight_body_bytes(self.max_concurrent_estimations, self.body_limit_bytes)
+            }
+        };
+        self.max_inflight_pixels = match max_inflight_pixels {
+            Some(pixels) => in_range(
+                "max-inflight-pixels",
+                pixels,
+                self.max_image_pixels,
+                u64::MAX / 8,
+            )?,
+            None => default_inflight_pixels(self.max_concurrent_estimations, self.max_image_pixels),
+        };
+        Ok(self)
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use clap::Parser;
-
-    #[derive(Debug, Parser)]
-    struct Cli {
-        #[command(flatten)]
-        serve: ServeArgs,
-    }
-
-    fn settings_from(flags: &[&str]) -> Result<Settings, ConfigError> {
-        let argv = std::iter::once("qrpose").chain(flags.iter().copied());
-        Settings::try_from(Cli::try_parse_from(argv).expect("flags parse").serve)
-    }
-
-    #[test]
-    fn defaults_are_valid_and_equal_the_default_settings() {
-        assert_eq!(settings_from(&[]), Ok(Settings::default()));
-        assert_eq!(
-            Settings::try_from(ServeArgs::default()),
-            Ok(Settings::default())
-        );
-    }
-
-    #[test]
-    fn flags_set_every_field() {
-        let s = settings_from(&[
-            "--addr",
-            "0.0.0.0:9000",
-            "--body-limit-bytes",
-            "4096",
-            "--request-timeout-ms",
-            "250",
-            "--worker-threads",
-            "3",
-            "--max-concurrent-estimations",
-            "5",
-            "--queue-length",
-            "0",
-            "--log-format",
-            "json",
-            "--shutdown-grace-ms",
-            "0",
-            "--max-image-pixels",
-            "1000000",
-            "--header-read-timeout-ms",
-            "1500",
-            "--idle-timeout-ms",
-            "2500",
-            "--max-connections",
-            "7",
-        ])
-        .expect("valid flags");
-        assert_eq!(s.addr, SocketAddr::from(([0, 0, 0, 0], 9000)));
-        assert_eq!(s.body_limit_bytes, 4096);
-        assert_eq!(s.request_timeout, Duration::from_millis(250));
-        assert_eq!(s.worker_threads.get(), 3);
-        assert_eq!(s.max_concurrent_estimations.get(), 5);
-        assert_eq!(s.queue_length, 0);
-        assert_eq!(s.log_format, LogFormat::Json);
-        assert_eq!(s.shutdown_grace, Duration::ZERO);
-        assert_eq!(s.max_image_pixels, 1_000_000);
-        assert_eq!(s.header_read_timeout, Duration::from_millis(1500));
-        assert_eq!(s.idle_timeout, Duration::from_millis(2500));
-        assert_eq!(s.max_connections.get(), 7);
-    }
-
-    #[test]
-    fn rejects_values_outside_their_range_naming_the_flag() {
-        let cases: [(&[&str], &str); 14] = [
-            (&["--body-limit-bytes", "10"], "body-limit-bytes"),
-            (&["--request-timeout-ms", "0"], "request-timeout-ms"),
-            (&["--worker-threads", "0"], "worker-threads"),
-            (&["--worker-threads", "100000"], "worker-threads"),
-            (
-                &["--max-concurrent-estimations", "0"],
-                "max-concurrent-estimations",
-            ),
-            (&["--queue-length", "1000000"], "queue-length"),
-            (&["--shutdown-grace-ms", "700000"], "shutdown-grace-ms"),
-            (&["--max-image-pixels", "0"], "max-image-pixels"),
-            (&["--max-image-pixels", "2000000000"], "max-image-pixels"),
-            (&["--header-read-timeout-ms", "0"], "header-read-timeout-ms"),
-            (
-                &["--header-read-timeout-ms", "600001"],
-                "header-read-timeout-ms",
-            ),
-            (&["--idle-timeout-ms", "0"], "idle-timeout-ms"),
-            (&["--max-connections", "0"], "max-connections"),
-            (&["--max-connections", "1000001"], "max-connections"),
-        ];
-        for (flags, flag) in cases {
-            let err = settings_from(flags).expect_err(flag);
-            assert_eq!(err.flag, flag, "{flags:?}");
-            assert!(err.to_string().starts_with(&format!("--{flag} ")), "{err}");
-        }
-    }
-
-    #[test]
-    fn an_unparseable_address_is_refused_by_the_parser() {
-        let argv = ["qrpose", "--addr", "localhost"];
-        assert!(Cli::try_parse_from(argv).is_err());
-    }
-}
+mod tests;

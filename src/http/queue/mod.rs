@@ -10,6 +10,17 @@
 //! of running jobs is bounded by the number of threads, and jobs in the system by the
 //! capacity, whatever the clients do.
 //!
+//! A request that gives up while its job *runs* raises the job's cancellation flag
+//! ([`qrpose_detect::cancel`]): detection stops before its next pass, so the worker is free
+//! within one pass (a few ms on the crops `auto` works on) rather than when every pass has
+//! run.
+//!
+//! Image jobs also take their share of a memory budget counted in pixels
+//! ([`EstimationQueue::run_image`], `--max-inflight-pixels`): the decoded frame and every
+//! working copy of detection are bounded per pixel (docs/deploy.md), so the pixels admitted
+//! at once bound the memory of the image path. A job that does not fit is refused at once
+//! with 503 `overloaded`, like a full queue.
+//!
 //! Why not `tokio::task::spawn_blocking`: with the admission bound in front of it, every job
 //! woke an idle blocking thread and then the async task again, and on the 2-core load test
 //! those thread switches cost more server CPU than the estimate itself (`perf`: a third of
@@ -18,6 +29,7 @@
 
 use super::error::ApiError;
 use super::metrics::QueueMetrics;
+use crate::detect::cancel::{CancelFlag, run_cancellable};
 use crate::detect::contain::contain;
 use crossbeam_channel::{Receiver, Sender};
 use std::sync::Arc;
@@ -41,6 +53,71 @@ struct Inner {
     capacity: usize,
     running: Arc<AtomicUsize>,
     metrics: QueueMetrics,
+    /// The image pixels admitted at once, at most.
+    pixel_budget: Arc<PixelBudget>,
+    /// The image body bytes held at once (being read, waiting or running), at most.
+    body_budget: Arc<PixelBudget>,
+}
+
+/// Pixels of admitted image jobs (or bytes of image bodies), against a fixed budget.
+#[derive(Debug)]
+struct PixelBudget {
+    capacity_px: u64,
+    taken_px: std::sync::atomic::AtomicU64,
+}
+
+/// A share of a pixel or byte budget; given back when dropped.
+#[derive(Debug)]
+pub struct PixelPermit {
+    budget: Arc<PixelBudget>,
+    pixels: u64,
+}
+
+impl Drop for PixelPermit {
+    fn drop(&mut self) {
+        self.budget
+            .taken_px
+            .fetch_sub(self.pixels, Ordering::Relaxed);
+    }
+}
+
+impl PixelBudget {
+    /// Takes `pixels` (at most the whole budget: a job larger than it runs alone) unless the
+    /// jobs admitted already leave less than that free.
+    fn try_take(budget: &Arc<Self>, pixels: u64) -> Option<PixelPermit> {
+        let pixels = pixels.min(budget.capacity_px);
+        budget
+            .taken_px
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |taken| {
+                (taken + pixels <= budget.capacity_px).then_some(taken + pixels)
+            })
+            .ok()
+            .map(|_| PixelPermit {
+                budget: Arc::clone(budget),
+                pixels,
+            })
+    }
+}
+
+fn unbounded() -> Arc<PixelBudget> {
+    bounded(u64::MAX)
+}
+
+fn bounded(capacity: u64) -> Arc<PixelBudget> {
+    Arc::new(PixelBudget {
+        capacity_px: capacity.max(1),
+        taken_px: 0.into(),
+    })
+}
+
+/// Raises a running job's cancellation flag when the request that waits for it goes away
+/// (a timeout, a closed connection): the request's future is dropped, and this with it.
+struct CancelOnDrop(CancelFlag);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.cancel();
+    }
 }
 
 /// The queue's occupancy at one moment.
@@ -90,7 +167,8 @@ fn work(jobs: &Receiver<Job>) {
 }
 
 impl EstimationQueue {
-    /// A queue with `workers` threads and at most `max_waiting` jobs waiting.
+    /// A queue with `workers` threads and at most `max_waiting` jobs waiting, with no pixel
+    /// budget ([`Self::with_pixel_budget`] sets one).
     ///
     /// # Errors
     /// The I/O error when a worker thread cannot be spawned.
@@ -110,8 +188,77 @@ impl EstimationQueue {
                 capacity,
                 running: Arc::new(AtomicUsize::new(0)),
                 metrics,
+                pixel_budget: unbounded(),
+                body_budget: unbounded(),
             }),
         })
+    }
+
+    /// This queue with image bodies admitted against `max_inflight_body_bytes`
+    /// ([`Self::take_body_bytes`]). Call it before the queue is cloned or used.
+    #[must_use]
+    pub fn with_body_budget(mut self, max_inflight_body_bytes: u64) -> Self {
+        if let Some(inner) = Arc::get_mut(&mut self.inner) {
+            inner.body_budget = bounded(max_inflight_body_bytes);
+        }
+        self
+    }
+
+    /// Takes `bytes` of the body budget for an image body about to be read, to be held
+    /// until the body is freed (the permit goes with the bytes, [`crate::http::image_input`]).
+    ///
+    /// # Errors
+    /// 503 `overloaded` at once when the bodies held already leave too few bytes free.
+    pub fn take_body_bytes(&self, bytes: u64) -> Result<PixelPermit, ApiError> {
+        PixelBudget::try_take(&self.inner.body_budget, bytes).ok_or_else(|| {
+            self.inner.metrics.rejected.inc();
+            tracing::debug!(
+                bytes,
+                budget = self.inner.body_budget.capacity_px,
+                "body budget spent"
+            );
+            ApiError::body_budget_spent(bytes, self.inner.body_budget.capacity_px)
+        })
+    }
+
+    /// This queue with image jobs admitted against `max_inflight_pixels`
+    /// ([`Self::run_image`]). Call it before the queue is cloned or used.
+    #[must_use]
+    pub fn with_pixel_budget(mut self, max_inflight_pixels: u64) -> Self {
+        if let Some(inner) = Arc::get_mut(&mut self.inner) {
+            inner.pixel_budget = bounded(max_inflight_pixels);
+        }
+        self
+    }
+
+    /// As [`Self::run`], for a job on an image of `pixels` (weighted) pixels: the job first
+    /// takes that share of the pixel budget and holds it until it ends.
+    ///
+    /// # Errors
+    /// 503 `overloaded` at once when the images admitted already leave too few pixels free,
+    /// or when the queue is full; as [`Self::run`] otherwise.
+    pub async fn run_image<T, F>(&self, pixels: u64, job: F) -> Result<T, ApiError>
+    where
+        F: FnOnce() -> T + Send + 'static,
+        T: Send + 'static,
+    {
+        let Some(permit) = PixelBudget::try_take(&self.inner.pixel_budget, pixels) else {
+            self.inner.metrics.rejected.inc();
+            tracing::debug!(
+                pixels,
+                budget = self.inner.pixel_budget.capacity_px,
+                "pixel budget spent"
+            );
+            return Err(ApiError::memory_budget_spent(
+                pixels,
+                self.inner.pixel_budget.capacity_px,
+            ));
+        };
+        self.run(move || {
+            let _permit = permit;
+            job()
+        })
+        .await
     }
 
     /// Runs `job` on a worker thread, in arrival order.
@@ -127,13 +274,15 @@ impl EstimationQueue {
         let mut place = self.try_take_place()?;
         let (reply, result) = oneshot::channel();
         let span = tracing::Span::current();
+        let cancel = CancelOnDrop(CancelFlag::new());
+        let flag = cancel.0.clone();
         let job: Job = Box::new(move || {
             if reply.is_closed() {
                 // The request gave up while waiting: nothing to compute for.
                 return;
             }
             place.start();
-            let outcome = contain(|| span.in_scope(job));
+            let outcome = contain(|| run_cancellable(&flag, || span.in_scope(job)));
             // Free the place before answering, so that the next request finds it free.
             drop(place);
             // The receiver may be gone (timed out meanwhile); the result is then unused.
@@ -143,7 +292,10 @@ impl EstimationQueue {
             .jobs
             .send(job)
             .map_err(|_| ApiError::internal("the estimation workers have stopped"))?;
-        match result.await {
+        let answer = result.await;
+        // Answered: raising the flag now stops nothing (the job has ended).
+        drop(cancel);
+        match answer {
             Ok(Ok(value)) => Ok(value),
             Ok(Err(panic)) => Err(ApiError::internal(format!(
                 "estimation job panicked: {panic}"
@@ -186,100 +338,4 @@ impl EstimationQueue {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::api::problem::ErrorCode;
-    use std::sync::mpsc;
-    use std::time::Duration;
-
-    const PATIENCE: Duration = Duration::from_secs(20);
-
-    async fn until(what: &str, queue: &EstimationQueue, want: (usize, usize)) {
-        let waited = tokio::time::timeout(PATIENCE, async {
-            loop {
-                let o = queue.occupancy();
-                if (o.running, o.waiting) == want {
-                    return;
-                }
-                tokio::time::sleep(Duration::from_millis(2)).await;
-            }
-        })
-        .await;
-        assert!(waited.is_ok(), "never reached {want:?}: {what}");
-    }
-
-    /// A job that runs until the returned sender sends (or is dropped).
-    fn gate() -> (mpsc::Sender<()>, impl FnOnce() + Send + 'static) {
-        let (open, gate) = mpsc::channel::<()>();
-        (open, move || {
-            let _ = gate.recv();
-        })
-    }
-
-    #[tokio::test]
-    async fn refuses_at_once_when_running_and_waiting_fill_the_capacity() {
-        let queue = EstimationQueue::new(1, 1, QueueMetrics::default()).expect("threads");
-        let (open_running, running) = gate();
-        let (open_waiting, waiting) = gate();
-        let first = tokio::spawn({
-            let queue = queue.clone();
-            async move { queue.run(running).await }
-        });
-        until("one running", &queue, (1, 0)).await;
-        let second = tokio::spawn({
-            let queue = queue.clone();
-            async move { queue.run(waiting).await }
-        });
-        until("one waiting", &queue, (1, 1)).await;
-
-        let refused = queue.run(|| ()).await.expect_err("full");
-        assert_eq!(refused.code(), ErrorCode::Overloaded);
-
-        open_running.send(()).expect("the first job waits");
-        first.await.expect("task").expect("first job");
-        open_waiting.send(()).expect("the second job waits");
-        second.await.expect("task").expect("second job");
-        until("empty", &queue, (0, 0)).await;
-        assert_eq!(queue.run(|| 7).await.expect("room again"), 7);
-    }
-
-    #[tokio::test]
-    async fn a_job_whose_request_gave_up_is_dropped_unrun() {
-        let queue = EstimationQueue::new(1, 1, QueueMetrics::default()).expect("threads");
-        let (open, blocker) = gate();
-        let blocked = tokio::spawn({
-            let queue = queue.clone();
-            async move { queue.run(blocker).await }
-        });
-        until("one running", &queue, (1, 0)).await;
-        let ran = Arc::new(AtomicUsize::new(0));
-        let abandoned = {
-            let ran = Arc::clone(&ran);
-            queue.run(move || ran.fetch_add(1, Ordering::Relaxed))
-        };
-        let gave_up = tokio::time::timeout(Duration::from_millis(20), abandoned).await;
-        assert!(gave_up.is_err(), "the job could not have run yet");
-
-        open.send(()).expect("the blocker waits");
-        blocked.await.expect("task").expect("blocker");
-        until("empty", &queue, (0, 0)).await;
-        assert_eq!(queue.run(|| ()).await.ok(), Some(()));
-        assert_eq!(
-            ran.load(Ordering::Relaxed),
-            0,
-            "the abandoned job never ran"
-        );
-    }
-
-    #[tokio::test]
-    async fn a_panicking_job_is_a_500_and_the_worker_lives_on() {
-        let queue = EstimationQueue::new(1, 0, QueueMetrics::default()).expect("threads");
-        let err = queue
-            .run(|| -> u8 { panic!("secret detail") })
-            .await
-            .expect_err("a panic");
-        assert_eq!(err.code(), ErrorCode::Internal);
-        assert!(!err.problem().detail.contains("secret"));
-        assert_eq!(queue.run(|| 1).await.expect("the worker lives on"), 1);
-    }
-}
+mod tests;
