@@ -5,7 +5,13 @@
 //!
 //! A code whose pose cannot be solved is still returned, with a typed [`MarkerError`] in
 //! place of the pose; it does not fail the other codes.
+//!
+//! The detector knows no camera, so it refines corners along straight sides. When the
+//! setup's camera distorts, every code is refined again through its lens
+//! ([`refine_corners_through`]; a fisheye bows the sides by pixels, issue 14); without
+//! distortion the detector's corners are used as they are.
 
+use crate::corners::{Lens, RefineStatus, refine_corners_through};
 use crate::finders::finder_marker_points;
 use crate::{
     Budget, DetectError, DetectedCode, DetectorChoice, PassReport, decode::GrayImage, detect_within,
@@ -112,8 +118,9 @@ pub fn locate_markers(
 ) -> Result<Located, DetectError> {
     let started = Instant::now();
     let detection = detect_within(image, options.detector, &options.budget)?;
-    let detect_ms = ms_since(started);
     let (codes, log) = (detection.codes, detection.log);
+    let codes = refined_through_lens(image, codes, &setup.camera);
+    let detect_ms = ms_since(started);
     let started = Instant::now();
     let markers = codes
         .into_iter()
@@ -135,6 +142,32 @@ pub fn locate_markers(
         budget_exhausted: log.budget_exhausted,
         estimate_ms: ms_since(started),
     })
+}
+
+/// `codes` with their corners refined again through the lens of `camera`, when it has one;
+/// a code whose refinement through the lens fails keeps the detector's straight-sided one.
+/// Unchanged for a camera without distortion.
+fn refined_through_lens(
+    image: &GrayImage,
+    codes: Vec<DetectedCode>,
+    camera: &Camera,
+) -> Vec<DetectedCode> {
+    if Lens::of(camera).is_none() {
+        return codes;
+    }
+    codes
+        .into_iter()
+        .map(|mut code| {
+            // The detector's N (its own estimate when the backend gave none), not estimated
+            // again.
+            let n = code.refinement.module_count.or(code.candidate.module_count);
+            let through_lens = refine_corners_through(image, &code.candidate.corners_px, n, camera);
+            if through_lens.status == RefineStatus::Refined {
+                code.refinement = through_lens;
+            }
+            code
+        })
+        .collect()
 }
 
 /// The pose of one code from the requested points (falling back to the corners when the

@@ -8,9 +8,10 @@
 #![allow(clippy::cast_possible_truncation)]
 
 use super::MIN_PX_PER_MODULE;
+use super::lens::Grid;
 use super::modules::ModuleMap;
 use crate::gray::GrayImage;
-use crate::homography::{Homography, ModulePoint};
+use crate::homography::ModulePoint;
 use crate::profile::{DarkRun, fit_profile};
 use qrpose_core::geometry::frames::PixelPoint;
 
@@ -42,9 +43,10 @@ pub(super) struct Observation {
     pub(super) c: f64,
     /// Where along the line (the other coordinate), modules.
     pub(super) t: f64,
-    /// The measured edge point, px.
+    /// The measured edge point in ideal pixels ([`super::lens`]): the photo's pixels when
+    /// the camera does not distort, else where a distortion-free camera would see it.
     pub(super) point: PixelPoint,
-    /// Pixels per module across the edge at this point.
+    /// The photo's pixels per module across the edge at this point.
     pub(super) px_per_module: f64,
     /// Which finder side this observation lies on, if any: (finder 0..3, side 0..4).
     pub(super) finder_side: Option<(usize, usize)>,
@@ -186,14 +188,15 @@ fn point_on(axis: Axis, c: f64, t: f64, d: f64) -> ModulePoint {
     }
 }
 
-/// Measures every usable site under `h`.
+/// Measures every usable site under `grid`: the profiles are sampled in the photo, along
+/// the lens's image of a straight module-grid segment across the edge.
 /// `scan`: the first pass, from a backend's whole-pixel corners: every other site only (it
 /// just brings the homography close), each searched over
 /// ±[`crate::profile::MAX_SHIFT_MODULES`]; later passes measure every site, starting at the
 /// current edge.
 pub(super) fn observe(
     image: &GrayImage,
-    h: &Homography,
+    grid: &Grid,
     map: &ModuleMap,
     scan: bool,
 ) -> Vec<Observation> {
@@ -207,7 +210,7 @@ pub(super) fn observe(
         };
         let c = s.c as f64;
         let centre = point_on(s.axis, c, s.k as f64 + 0.5, 0.0);
-        let (ppm_u, ppm_v) = h.px_per_module(centre);
+        let (ppm_u, ppm_v) = grid.px_per_module(centre);
         let across = match s.axis {
             Axis::U => ppm_u,
             Axis::V => ppm_v,
@@ -231,7 +234,7 @@ pub(super) fn observe(
         intensity.clear();
         for q in 0..=samples {
             let x = -PROFILE_HALF_MODULES + q as f64 * step_d;
-            let p = h.map(point_on(s.axis, c, t, x));
+            let p = grid.map(point_on(s.axis, c, t, x));
             if let Some(i) = image.sample(p.u(), p.v()) {
                 d.push(x);
                 intensity.push(i);
@@ -247,7 +250,7 @@ pub(super) fn observe(
             axis: s.axis,
             c,
             t,
-            point: h.map(point_on(s.axis, c, t, fit.delta)),
+            point: grid.ideal(point_on(s.axis, c, t, fit.delta)),
             px_per_module: across,
             finder_side: s.finder_side,
         });

@@ -29,7 +29,14 @@
 //! finder-pattern match, or corners that moved further than [`MAX_MOVE_MODULES`] from the
 //! backend's, the backend corners are kept and [`Refinement::status`] says why.
 //!
-//! This module runs the passes ([`refine_corners`]) and owns the result types.
+//! **Distorting lenses** ([`refine_corners_through`]): with the camera's lens, the
+//! homography maps modules to ideal (undistorted) pixels, every sample of the photo is
+//! taken through the distortion, and the fits of stages 4 and 5 run on edge points in ideal
+//! pixels, where the grid's lines are straight again (module `lens`). The corners are
+//! reported in the photo's pixels either way.
+//!
+//! This module runs the passes ([`refine_corners`], [`refine_corners_through`]) and owns
+//! the result types.
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
@@ -38,15 +45,19 @@
 mod count;
 mod edges;
 mod fit;
+mod lens;
 mod modules;
 
 pub use count::estimate_module_count;
+pub use lens::Lens;
 
 use crate::gray::GrayImage;
-use crate::homography::{Homography, ModulePoint};
+use crate::homography::ModulePoint;
 use edges::observe;
 use fit::{finder_corners, fit_homography};
+use lens::Grid;
 use modules::{module_map, reference_levels};
+use qrpose_core::geometry::camera::Camera;
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// Most final refinement passes. The first pass scans (every other site, each edge searched
@@ -119,10 +130,35 @@ fn largest_move_px(a: &[PixelPoint; 4], b: &[PixelPoint; 4]) -> f64 {
 }
 
 /// Refines a backend's corners (qr order). `module_count` is N when the backend knows it.
+/// The symbol's sides are taken to be straight in the photo: a camera without distortion
+/// (for one that distorts, [`refine_corners_through`]).
 pub fn refine_corners(
     image: &GrayImage,
     backend_corners: &[PixelPoint; 4],
     module_count: Option<usize>,
+) -> Refinement {
+    refine(image, backend_corners, module_count, None)
+}
+
+/// Refines a backend's corners (qr order, px) in a photo taken by `camera`, whose lens
+/// distortion bows the symbol's straight lines. Without distortion this is
+/// [`refine_corners`], with the same result. The backend's corners are kept (status
+/// [`RefineStatus::TooFewEdges`]) also when one of them cannot be undistorted.
+pub fn refine_corners_through(
+    image: &GrayImage,
+    backend_corners: &[PixelPoint; 4],
+    module_count: Option<usize>,
+    camera: &Camera,
+) -> Refinement {
+    refine(image, backend_corners, module_count, Lens::of(camera))
+}
+
+/// The passes of [`refine_corners`], through `lens` when there is one.
+fn refine(
+    image: &GrayImage,
+    backend_corners: &[PixelPoint; 4],
+    module_count: Option<usize>,
+    lens: Option<Lens>,
 ) -> Refinement {
     let unrefined = |status, module_count| Refinement {
         corners_px: *backend_corners,
@@ -134,33 +170,35 @@ pub fn refine_corners(
     let Some(n) = module_count.or_else(|| estimate_module_count(image, backend_corners)) else {
         return unrefined(RefineStatus::UnknownModuleCount, None);
     };
-    let Some(mut h) = Homography::from_corners(backend_corners, n as f64) else {
+    let Some(mut grid) = Grid::from_corners(backend_corners, n as f64, lens) else {
         return unrefined(RefineStatus::TooFewEdges, Some(n));
     };
-    let (ppm_u, ppm_v) = h.px_per_module(ModulePoint::new(n as f64 / 2.0, n as f64 / 2.0));
+    let (ppm_u, ppm_v) = grid.px_per_module(ModulePoint::new(n as f64 / 2.0, n as f64 / 2.0));
     if ppm_u.min(ppm_v) < MIN_PX_PER_MODULE {
         return unrefined(RefineStatus::TooSmall, Some(n));
     }
     let mut obs = Vec::new();
-    let mut corners_px = h.corners(n as f64);
+    let mut corners_px = grid.corners(n as f64);
     let mut last_step_px = f64::INFINITY;
     for pass in 0..=MAX_FINAL_PASSES {
         let scan = pass == 0;
-        let Some((light, dark)) = reference_levels(image, &h, n) else {
+        let Some((light, dark)) = reference_levels(image, &grid, n) else {
             return unrefined(RefineStatus::TooFewEdges, Some(n));
         };
-        let map = module_map(image, &h, n, light, dark);
-        let pass_obs = observe(image, &h, &map, scan);
-        let Some(next_h) = fit_homography(&pass_obs, &h) else {
+        let map = module_map(image, &grid, n, light, dark);
+        let pass_obs = observe(image, &grid, &map, scan);
+        // The observations are in ideal pixels, where the grid's lines are straight.
+        let Some(next_h) = fit_homography(&pass_obs, grid.homography()) else {
             return unrefined(RefineStatus::TooFewEdges, Some(n));
         };
-        let next = next_h.corners(n as f64);
+        let next_grid = grid.with_homography(next_h);
+        let next = next_grid.corners(n as f64);
         let step_px = largest_move_px(&next, &corners_px);
         if pass > 1 && step_px >= last_step_px {
             // Not converging (a hard image): keep the pass before.
             break;
         }
-        (h, obs, corners_px, last_step_px) = (next_h, pass_obs, next, step_px);
+        (grid, obs, corners_px, last_step_px) = (next_grid, pass_obs, next, step_px);
         if !scan && step_px <= SETTLED_PX {
             break;
         }
@@ -172,7 +210,9 @@ pub fn refine_corners(
     }
     Refinement {
         corners_px,
-        finder_corners_px: finder_corners(&obs),
+        // The finder sides are straight lines in ideal pixels; their corners go back
+        // into the photo.
+        finder_corners_px: finder_corners(&obs).map(|c| c.map(|p| grid.photo_from_ideal(p))),
         module_count: Some(n),
         status: RefineStatus::Refined,
         observations: obs.len(),

@@ -1,4 +1,4 @@
-//! The module map of a symbol under a homography (stage 2 of [`super::refine_corners`]):
+//! The module map of a symbol under its grid (stage 2 of [`super::refine_corners`]):
 //! the function patterns (three finders with their separators, two timing patterns) are
 //! known for every module count; data modules are read at their centres. Also the light
 //! and dark reference levels (quiet zone, finder cores) that the reading thresholds at.
@@ -7,8 +7,9 @@
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
 #![allow(clippy::cast_possible_truncation)]
 
+use super::lens::Grid;
 use crate::gray::GrayImage;
-use crate::homography::{Homography, ModulePoint};
+use crate::homography::ModulePoint;
 
 /// Module colours: `Some(true)` dark, `Some(false)` light, `None` unknown. Outside the
 /// symbol everything is light (the quiet zone).
@@ -80,7 +81,7 @@ pub(super) fn function_module_count(n: usize) -> usize {
 
 /// Light and dark reference levels: the quiet zone just outside the symbol and the finder
 /// cores. `None` when they cannot be sampled.
-pub(super) fn reference_levels(image: &GrayImage, h: &Homography, n: usize) -> Option<(f64, f64)> {
+pub(super) fn reference_levels(image: &GrayImage, grid: &Grid, n: usize) -> Option<(f64, f64)> {
     let nf = n as f64;
     let mut light = Vec::new();
     for k in 0..(4 * n) {
@@ -91,7 +92,7 @@ pub(super) fn reference_levels(image: &GrayImage, h: &Homography, n: usize) -> O
             ModulePoint::new(-1.5, t),
             ModulePoint::new(nf + 1.5, t),
         ] {
-            let x = h.map(p);
+            let x = grid.map(p);
             if let Some(i) = image.sample(x.u(), x.v()) {
                 light.push(i);
             }
@@ -101,7 +102,7 @@ pub(super) fn reference_levels(image: &GrayImage, h: &Homography, n: usize) -> O
     for (u0, v0) in [(2.0, 2.0), (nf - 5.0, 2.0), (2.0, nf - 5.0)] {
         for a in 0..3 {
             for b in 0..3 {
-                let x = h.map(ModulePoint::new(
+                let x = grid.map(ModulePoint::new(
                     u0 + f64::from(a) + 0.5,
                     v0 + f64::from(b) + 0.5,
                 ));
@@ -122,10 +123,11 @@ fn median(values: &mut [f64]) -> Option<f64> {
     Some(values[values.len() / 2])
 }
 
-/// The module map under `h`: function patterns known, data modules read at their centres.
+/// The module map under `grid`: function patterns known, data modules read at their
+/// centres.
 pub(super) fn module_map(
     image: &GrayImage,
-    h: &Homography,
+    grid: &Grid,
     n: usize,
     light: f64,
     dark: f64,
@@ -136,7 +138,7 @@ pub(super) fn module_map(
     for j in 0..n {
         for i in 0..n {
             map[j * n + i] = function_module(n, i, j).or_else(|| {
-                let x = h.map(ModulePoint::new(i as f64 + 0.5, j as f64 + 0.5));
+                let x = grid.map(ModulePoint::new(i as f64 + 0.5, j as f64 + 0.5));
                 image
                     .sample(x.u(), x.v())
                     .map(|value| (value < threshold) != inverted)
