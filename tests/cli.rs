@@ -228,13 +228,29 @@ fn estimate_stops_quietly_when_the_reader_closes_the_pipe() {
 fn image_query_parameters() -> Vec<String> {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/openapi/openapi.json");
     let doc = json(&std::fs::read(path).expect("the committed document"));
-    doc["paths"]["/v1/pose/image"]["post"]["parameters"]
+    let mut names = Vec::new();
+    for p in doc["paths"]["/v1/pose/image"]["post"]["parameters"]
         .as_array()
         .expect("parameters")
         .iter()
         .filter(|p| p["in"] == "query")
-        .map(|p| p["name"].as_str().expect("a name").to_owned())
-        .collect()
+    {
+        match p["schema"]["oneOf"].as_array() {
+            // An object parameter (`style: form, explode: true`, the camera): each property
+            // of each form is a query parameter of its own.
+            Some(forms) => {
+                for form in forms {
+                    for name in form["properties"].as_object().expect("properties").keys() {
+                        if !names.contains(name) {
+                            names.push(name.clone());
+                        }
+                    }
+                }
+            }
+            None => names.push(p["name"].as_str().expect("a name").to_owned()),
+        }
+    }
+    names
 }
 
 #[test]

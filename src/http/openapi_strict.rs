@@ -3,7 +3,7 @@
 //! a client generator, a validator or a fuzzer built from the document sends what the server
 //! accepts.
 //!
-//! - exactly one of `corners_px` / `corners_mm`, each four `[u, v]` pairs;
+//! - exactly one of `corners_px` / `corners_mm`, each four distinct `[u, v]` pairs;
 //! - the camera in exactly one of its forms (pixels, sensor, image plane, site id), and the
 //!   image-plane form with `corners_mm` only;
 //! - exclusive minima and the ranges of every number the server checks (focal lengths,
@@ -78,9 +78,10 @@ fn with_title(mut schema: Value, title: &str) -> Value {
     schema
 }
 
-/// Four `[u, v]` pairs (or `null`, which is as good as absent).
+/// Four distinct `[u, v]` pairs (or `null`, which is as good as absent); corners that
+/// coincide exactly are `duplicate_corners`.
 fn four_points() -> Value {
-    json!({"type": ["array", "null"], "minItems": 4, "maxItems": 4,
+    json!({"type": ["array", "null"], "minItems": 4, "maxItems": 4, "uniqueItems": true,
         "items": {"type": "array", "minItems": 2, "maxItems": 2, "items": {"type": "number"}}})
 }
 
@@ -208,7 +209,77 @@ fn tighten_requests(doc: &mut Value) {
     );
 }
 
-/// The query parameters of the raw-body image form: the same minima as the JSON fields.
+/// The query parameters that give the raw image form's camera.
+const CAMERA_QUERY: [&str; 7] = [
+    "camera_id",
+    "fx_px",
+    "fy_px",
+    "cx_px",
+    "cy_px",
+    "focal_length_mm",
+    "pixel_size_um",
+];
+
+/// The camera forms of the raw image form, by their query parameters.
+const CAMERA_QUERY_FORMS: [&[&str]; 3] = [
+    &["fx_px", "fy_px", "cx_px", "cy_px"],
+    &["focal_length_mm", "pixel_size_um", "cx_px", "cy_px"],
+    &["camera_id"],
+];
+
+/// Replaces the camera's separate query parameters by one object parameter `camera`
+/// (`style: form, explode: true`: each property is its own query parameter, exactly the
+/// wire format the server reads) whose schema is `oneOf` the camera's forms. OpenAPI cannot
+/// say "these parameters together, or those" of separate parameters; of one object
+/// parameter it can.
+fn camera_query_object(parameters: &mut Vec<Value>) {
+    let mut fields = serde_json::Map::new();
+    parameters.retain(|p| {
+        let Some(name) = p["name"].as_str().filter(|n| CAMERA_QUERY.contains(n)) else {
+            return true;
+        };
+        let mut schema = p["schema"].clone();
+        if schema["type"].is_array() {
+            schema["type"] = json!(if name == "camera_id" {
+                "string"
+            } else {
+                "number"
+            });
+        }
+        if name == "camera_id" {
+            schema["minLength"] = json!(1);
+        }
+        schema["description"] = p["description"].clone();
+        fields.insert(name.to_owned(), schema);
+        false
+    });
+    if fields.is_empty() {
+        return;
+    }
+    let forms: Vec<Value> = CAMERA_QUERY_FORMS
+        .iter()
+        .map(|names| {
+            let properties: serde_json::Map<String, Value> = names
+                .iter()
+                .filter_map(|n| fields.get(*n).map(|f| ((*n).to_owned(), f.clone())))
+                .collect();
+            json!({"type": "object", "required": names, "properties": properties,
+                "additionalProperties": false})
+        })
+        .collect();
+    parameters.insert(
+        0,
+        json!({"name": "camera", "in": "query", "required": true, "style": "form",
+            "explode": true,
+            "description": "The camera, as separate query parameters in one of three forms: \
+                `fx_px`, `fy_px`, `cx_px`, `cy_px` (pixels); `focal_length_mm`, `pixel_size_um`, \
+                `cx_px`, `cy_px` (sensor); or `camera_id` (a camera of the loaded site).",
+            "schema": {"oneOf": forms}}),
+    );
+}
+
+/// The query parameters of the raw-body image form: the same minima as the JSON fields, and
+/// the camera as one object parameter ([`camera_query_object`]).
 fn tighten_query_parameters(doc: &mut Value) {
     let Some(Value::Object(paths)) = doc.get_mut("paths") else {
         return;
@@ -232,6 +303,11 @@ fn tighten_query_parameters(doc: &mut Value) {
             if let Some(schema) = parameter.get_mut("schema") {
                 merge_value(schema, &extra);
             }
+        }
+    }
+    for item in paths.values_mut() {
+        if let Some(Value::Array(parameters)) = item.pointer_mut("/post/parameters") {
+            camera_query_object(parameters);
         }
     }
 }

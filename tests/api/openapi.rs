@@ -108,16 +108,19 @@ fn the_image_operation_documents_both_forms_and_every_parameter() {
         form["encoding"]["request"]["contentType"],
         "application/json"
     );
-    let parameters: Vec<&str> = image["parameters"]
-        .as_array()
-        .expect("parameters")
-        .iter()
-        .map(|p| {
-            assert_eq!(p["in"], "query");
-            assert!(p["description"].is_string(), "{p}");
-            p["name"].as_str().expect("a name")
-        })
-        .collect();
+    let mut parameters: Vec<&str> = Vec::new();
+    for p in image["parameters"].as_array().expect("parameters") {
+        assert_eq!(p["in"], "query");
+        assert!(p["description"].is_string(), "{p}");
+        parameters.push(p["name"].as_str().expect("a name"));
+        // The camera: one object parameter exploded into its forms' fields.
+        for form in p["schema"]["oneOf"].as_array().into_iter().flatten() {
+            for (name, field) in form["properties"].as_object().expect("properties") {
+                assert!(field["description"].is_string(), "{name}: {field}");
+                parameters.push(name);
+            }
+        }
+    }
     for name in ["fx_px", "marker_size_mm", "method", "detector", "points"] {
         assert!(parameters.contains(&name), "{name} in {parameters:?}");
     }
