@@ -183,6 +183,15 @@ def main():
         only_z = sum(len(set(r["zxing"]["read"]) - set(r["qrpose"]["read"])) for r in records)
         both = sum(len(set(r["zxing"]["read"]) & set(r["qrpose"]["read"])) for r in records)
         print(f"\nCodes read by both: {both}; by qrpose only: {only_q}; by zxing-cpp only: {only_z}.")
+        pairs = [(r["qrpose"]["ms"], r["zxing"]["ms"]) for r in records
+                 if r["qrpose"]["ms"] and r["zxing"]["ms"]]
+        if pairs:
+            ratios = [q / z for q, z in pairs]
+            print("Time, qrpose / zxing-cpp: ratio of the medians "
+                  f"{pc.median([q for q, _ in pairs]) / pc.median([z for _, z in pairs]):.2f}; "
+                  f"median of the per-photo ratios {pc.median(ratios):.2f} "
+                  f"(p95 {pc.pct(ratios, 0.95):.2f}); ratio of the totals "
+                  f"{sum(q for q, _ in pairs) / sum(z for _, z in pairs):.2f}.")
     print(("Decoded payloads matching no expected text (text-mode or encoding differences, or a "
            "misread): " if by_text_any else
            "Decoded quadrilaterals matching no label (unlabelled codes, or corners off by IoU < 0.5): ")
