@@ -16,7 +16,7 @@
 use super::{
     error::ApiError,
     extract::{self, BodyError},
-    queue::PixelPermit,
+    queue::BudgetPermit,
     state::AppState,
 };
 use crate::api::{
@@ -100,7 +100,7 @@ impl FromRequest<AppState> for ImageInput {
 /// The share of the body budget ([`crate::http::queue::EstimationQueue::take_body_bytes`])
 /// that `request`'s body may need: its declared length, or the body limit when it declares
 /// none (chunked). Taken before a byte is read, so that bodies being read count too.
-fn take_body_bytes(request: &Request, state: &AppState) -> Result<PixelPermit, ApiError> {
+fn take_body_bytes(request: &Request, state: &AppState) -> Result<BudgetPermit, ApiError> {
     let limit_bytes = state.settings.body_limit_bytes;
     let bytes =
         extract::declared_length(request.headers()).map_or(limit_bytes, |n| n.min(limit_bytes));
@@ -113,7 +113,7 @@ fn take_body_bytes(request: &Request, state: &AppState) -> Result<PixelPermit, A
 /// is dropped (the image part of a multipart body refers into it too).
 struct Budgeted {
     bytes: Bytes,
-    _permit: PixelPermit,
+    _permit: BudgetPermit,
 }
 
 impl AsRef<[u8]> for Budgeted {
@@ -122,7 +122,7 @@ impl AsRef<[u8]> for Budgeted {
     }
 }
 
-fn budgeted(bytes: Bytes, permit: PixelPermit) -> Bytes {
+fn budgeted(bytes: Bytes, permit: BudgetPermit) -> Bytes {
     Bytes::from_owner(Budgeted {
         bytes,
         _permit: permit,
@@ -133,7 +133,7 @@ fn budgeted(bytes: Bytes, permit: PixelPermit) -> Bytes {
 async fn raw_input(
     request: Request,
     limit_bytes: usize,
-    permit: PixelPermit,
+    permit: BudgetPermit,
 ) -> Result<ImageInput, ApiError> {
     let query = request.uri().query().map(str::to_owned);
     let image = extract::read_body(request, limit_bytes)
@@ -151,7 +151,7 @@ async fn raw_input(
 async fn multipart_input(
     request: Request,
     state: &AppState,
-    permit: PixelPermit,
+    permit: BudgetPermit,
 ) -> Result<ImageInput, ApiError> {
     let limit_bytes = state.settings.body_limit_bytes;
     if let Some(parameter) = first_query_parameter(request.uri().query()) {

@@ -54,59 +54,58 @@ struct Inner {
     running: Arc<AtomicUsize>,
     metrics: QueueMetrics,
     /// The image pixels admitted at once, at most.
-    pixel_budget: Arc<PixelBudget>,
+    pixel_budget: Arc<AmountBudget>,
     /// The image body bytes held at once (being read, waiting or running), at most.
-    body_budget: Arc<PixelBudget>,
+    body_budget: Arc<AmountBudget>,
 }
 
-/// Pixels of admitted image jobs (or bytes of image bodies), against a fixed budget.
+/// An amount held against a fixed budget: pixels of admitted image jobs, or bytes of image
+/// bodies.
 #[derive(Debug)]
-struct PixelBudget {
-    capacity_px: u64,
-    taken_px: std::sync::atomic::AtomicU64,
+struct AmountBudget {
+    capacity: u64,
+    taken: std::sync::atomic::AtomicU64,
 }
 
 /// A share of a pixel or byte budget; given back when dropped.
 #[derive(Debug)]
-pub struct PixelPermit {
-    budget: Arc<PixelBudget>,
-    pixels: u64,
+pub struct BudgetPermit {
+    budget: Arc<AmountBudget>,
+    amount: u64,
 }
 
-impl Drop for PixelPermit {
+impl Drop for BudgetPermit {
     fn drop(&mut self) {
-        self.budget
-            .taken_px
-            .fetch_sub(self.pixels, Ordering::Relaxed);
+        self.budget.taken.fetch_sub(self.amount, Ordering::Relaxed);
     }
 }
 
-impl PixelBudget {
-    /// Takes `pixels` (at most the whole budget: a job larger than it runs alone) unless the
+impl AmountBudget {
+    /// Takes `amount` (at most the whole budget: a job larger than it runs alone) unless the
     /// jobs admitted already leave less than that free.
-    fn try_take(budget: &Arc<Self>, pixels: u64) -> Option<PixelPermit> {
-        let pixels = pixels.min(budget.capacity_px);
+    fn try_take(budget: &Arc<Self>, amount: u64) -> Option<BudgetPermit> {
+        let amount = amount.min(budget.capacity);
         budget
-            .taken_px
+            .taken
             .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |taken| {
-                (taken + pixels <= budget.capacity_px).then_some(taken + pixels)
+                (taken + amount <= budget.capacity).then_some(taken + amount)
             })
             .ok()
-            .map(|_| PixelPermit {
+            .map(|_| BudgetPermit {
                 budget: Arc::clone(budget),
-                pixels,
+                amount,
             })
     }
 }
 
-fn unbounded() -> Arc<PixelBudget> {
+fn unbounded() -> Arc<AmountBudget> {
     bounded(u64::MAX)
 }
 
-fn bounded(capacity: u64) -> Arc<PixelBudget> {
-    Arc::new(PixelBudget {
-        capacity_px: capacity.max(1),
-        taken_px: 0.into(),
+fn bounded(capacity: u64) -> Arc<AmountBudget> {
+    Arc::new(AmountBudget {
+        capacity: capacity.max(1),
+        taken: 0.into(),
     })
 }
 
@@ -209,15 +208,15 @@ impl EstimationQueue {
     ///
     /// # Errors
     /// 503 `overloaded` at once when the bodies held already leave too few bytes free.
-    pub fn take_body_bytes(&self, bytes: u64) -> Result<PixelPermit, ApiError> {
-        PixelBudget::try_take(&self.inner.body_budget, bytes).ok_or_else(|| {
+    pub fn take_body_bytes(&self, bytes: u64) -> Result<BudgetPermit, ApiError> {
+        AmountBudget::try_take(&self.inner.body_budget, bytes).ok_or_else(|| {
             self.inner.metrics.rejected.inc();
             tracing::debug!(
                 bytes,
-                budget = self.inner.body_budget.capacity_px,
+                budget = self.inner.body_budget.capacity,
                 "body budget spent"
             );
-            ApiError::body_budget_spent(bytes, self.inner.body_budget.capacity_px)
+            ApiError::body_budget_spent(bytes, self.inner.body_budget.capacity)
         })
     }
 
@@ -242,16 +241,16 @@ impl EstimationQueue {
         F: FnOnce() -> T + Send + 'static,
         T: Send + 'static,
     {
-        let Some(permit) = PixelBudget::try_take(&self.inner.pixel_budget, pixels) else {
+        let Some(permit) = AmountBudget::try_take(&self.inner.pixel_budget, pixels) else {
             self.inner.metrics.rejected.inc();
             tracing::debug!(
                 pixels,
-                budget = self.inner.pixel_budget.capacity_px,
+                budget = self.inner.pixel_budget.capacity,
                 "pixel budget spent"
             );
             return Err(ApiError::memory_budget_spent(
                 pixels,
-                self.inner.pixel_budget.capacity_px,
+                self.inner.pixel_budget.capacity,
             ));
         };
         self.run(move || {
