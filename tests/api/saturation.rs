@@ -2,7 +2,8 @@
 //! waits too long 503 `timeout`, both with `Retry-After`. The test occupies the workers
 //! itself through the server's own queue, so nothing depends on how fast an estimate is.
 //! Queued requests are image requests: short corners estimates run inline and never queue
-//! (`a_corners_request_is_answered_while_every_worker_is_busy`).
+//! (`a_corners_request_is_answered_while_every_worker_is_busy`). Image bodies are admitted
+//! against a byte budget before they are read.
 
 use crate::helpers::{
     assert_problem, occupy_worker, one_worker, queue_reaches, spawn_app_with, valid_request,
@@ -110,4 +111,67 @@ async fn a_corners_request_is_answered_while_every_worker_is_busy() {
     assert_problem(app.post_corners(&long).await, 503, ErrorCode::Overloaded).await;
     gate.release().await;
     assert_eq!(app.post_corners(&long).await.status(), StatusCode::OK);
+}
+
+#[tokio::test]
+async fn image_bodies_beyond_the_body_budget_are_refused_before_they_are_read() {
+    use tokio::io::AsyncWriteExt;
+
+    // Arrange: room for one 40 KiB body at a time; a first client declares one and sends
+    // only its first bytes, so the server holds its share while it waits for the rest.
+    let body_bytes: usize = 40 * 1024;
+    let app = spawn_app_with(Settings {
+        body_limit_bytes: 64 * 1024,
+        max_inflight_body_bytes: 64 * 1024,
+        ..Settings::default()
+    })
+    .await;
+    let host = app.address.trim_start_matches("http://").to_owned();
+    let mut slow = tokio::net::TcpStream::connect(&host)
+        .await
+        .expect("connects");
+    let head = format!(
+        "POST /v1/pose/image?fx_px=1000&fy_px=1000&cx_px=639.5&cy_px=359.5&marker_size_mm=50 \
+         HTTP/1.1\r\nHost: {host}\r\nContent-Type: image/jpeg\r\nContent-Length: {body_bytes}\r\n\r\n"
+    );
+    slow.write_all(head.as_bytes()).await.expect("writes");
+    slow.write_all(&[0xFF, 0xD8]).await.expect("writes");
+    tokio::time::sleep(Duration::from_millis(200)).await;
+
+    // Act: a second body of the same size does not fit beside it.
+    let refused = app
+        .post_image(
+            "fx_px=1000&fy_px=1000&cx_px=639.5&cy_px=359.5&marker_size_mm=50",
+            vec![0u8; body_bytes],
+            Some("image/jpeg"),
+        )
+        .await;
+
+    // Assert: refused at once, naming the budget; once the first client is gone its share
+    // is free again (the same request is read and judged: not an image).
+    assert_eq!(refused.headers()[header::RETRY_AFTER], "1");
+    let problem = assert_problem(refused, 503, ErrorCode::Overloaded).await;
+    assert!(
+        problem.detail.contains("max-inflight-body-bytes"),
+        "{}",
+        problem.detail
+    );
+    drop(slow);
+    let mut answered = None;
+    for _ in 0..100 {
+        let response = app
+            .post_image(
+                "fx_px=1000&fy_px=1000&cx_px=639.5&cy_px=359.5&marker_size_mm=50",
+                vec![0u8; body_bytes],
+                Some("image/jpeg"),
+            )
+            .await;
+        if response.status() != StatusCode::SERVICE_UNAVAILABLE {
+            answered = Some(response);
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let answered = answered.expect("the budget is free once the first body is dropped");
+    assert_problem(answered, 422, ErrorCode::UndecodableImage).await;
 }
