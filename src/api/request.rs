@@ -404,6 +404,21 @@ impl CornersRequest {
         let four = four_corners(corners, pointer)?;
         let scale = setup.mm_per_px.map_or(1.0, |mm_per_px| 1.0 / mm_per_px);
         let points = four.map(|[u, v]| PixelPoint::new(u * scale, v * scale));
+        let overflowed = four.iter().zip(&points).any(|([u, v], p)| {
+            u.is_finite() && v.is_finite() && !(p.u().is_finite() && p.v().is_finite())
+        });
+        if overflowed {
+            // Finite millimetres over a tiny pixel pitch: the input is finite, its pixels
+            // are not (not a `non_finite_number` of the client's).
+            return Err(Problem::new(
+                ErrorCode::NumericallyDegenerate,
+                format!(
+                    "the corners in pixels ({pointer} divided by the pixel size of {:e} mm) overflow double precision",
+                    setup.mm_per_px.unwrap_or(1.0)
+                ),
+            )
+            .with_field(pointer));
+        }
         let quad = ImageQuad::try_new(points, self.corner_order.into())
             .map_err(|e| problem_from_quad_error(e, pointer))?;
         Ok((
