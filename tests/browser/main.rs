@@ -6,7 +6,8 @@
 //! console error, every control labelled and keyboard use alone enough.
 //!
 //! Needs `/usr/bin/chromium` and `/usr/bin/chromedriver` (Debian's `chromium` and
-//! `chromium-driver`; `.ci/run` installs them) and `curl`; fails without them.
+//! `chromium-driver`: `.ci/run` installs them, and so do these tests when they are missing and
+//! `apt-get` can) and `curl`; fails without them.
 //! `QRPOSE_WRITE_SCREENSHOTS=1` writes the desktop and phone screenshots to `docs/img/`.
 
 #[path = "../support/mod.rs"]

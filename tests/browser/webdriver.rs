@@ -44,12 +44,46 @@ fn free_port() -> u16 {
         .expect("a free port")
 }
 
+/// Whether both programs are there.
+fn browser_installed() -> bool {
+    [CHROMIUM, CHROMEDRIVER]
+        .iter()
+        .all(|p| Path::new(p).exists())
+}
+
+/// Installs Debian's `chromium` and `chromium-driver` when they are missing and `apt-get`
+/// can (root, Debian), once per test run, so that `cargo test` on a fresh machine with only
+/// the Rust toolchain runs the browser tests too (as `.ci/run` does before it). Where it
+/// cannot, [`Browser::start`] fails with the command to run.
+fn install_browser_once() {
+    static INSTALLED: std::sync::Once = std::sync::Once::new();
+    INSTALLED.call_once(|| {
+        if browser_installed() || !Path::new("/usr/bin/apt-get").exists() {
+            return;
+        }
+        eprintln!("browser tests: installing Debian's chromium and chromium-driver (apt-get)");
+        for args in [
+            &["update", "-qq"][..],
+            &["install", "-y", "-qq", "chromium", "chromium-driver"][..],
+        ] {
+            let _ = Command::new("apt-get")
+                .args(args)
+                .env("DEBIAN_FRONTEND", "noninteractive")
+                .stdin(Stdio::null())
+                .stdout(Stdio::null())
+                .status();
+        }
+    });
+}
+
 impl Browser {
-    /// Starts chromedriver and a headless Chromium with a `width` × `height` viewport.
+    /// Starts chromedriver and a headless Chromium with a `width` × `height` viewport,
+    /// installing them first when they are missing and can be ([`install_browser_once`]).
     ///
     /// # Panics
     /// When Chromium or chromedriver is not installed: the test must fail, not pass.
     pub fn start(width: u32, height: u32) -> Self {
+        install_browser_once();
         for program in [CHROMIUM, CHROMEDRIVER] {
             assert!(
                 Path::new(program).exists(),
