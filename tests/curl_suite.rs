@@ -4,10 +4,10 @@
 //!
 //! Needs `bash` and `curl` on the PATH (CI's image has both).
 
-use std::io::{BufRead, BufReader};
+mod support;
+
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 /// How long to wait for the server to start or stop before failing.
@@ -28,7 +28,7 @@ impl Server {
     fn start_with(name: &str, extra_args: &[&str]) -> Self {
         let log = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("curl-suite-{name}.log"));
         let log_file = std::fs::File::create(&log).expect("a log file");
-        let mut child = Command::new(env!("CARGO_BIN_EXE_qrpose"))
+        let child = Command::new(env!("CARGO_BIN_EXE_qrpose"))
             .args([
                 "serve",
                 "--addr",
@@ -45,19 +45,12 @@ impl Server {
             .stderr(log_file)
             .spawn()
             .expect("qrpose starts");
-        let stdout = child.stdout.take().expect("piped stdout");
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut first = String::new();
-            let _ = BufReader::new(stdout).read_line(&mut first);
-            let _ = tx.send(first);
-        });
         let mut server = Self {
             child,
             base_url: String::new(),
             log,
         };
-        let line = rx.recv_timeout(PATIENCE).unwrap_or_default();
+        let line = support::first_stdout_line(&mut server.child, PATIENCE);
         match line.trim().strip_prefix("listening on ") {
             Some(url) => server.base_url = url.to_owned(),
             None => panic!("no address printed: {line:?}\n{}", server.logs()),

@@ -7,11 +7,12 @@
 //!
 //! Needs `sh` (for `ulimit`) and Linux's `/proc` (for the server's CPU time).
 
-use std::io::{BufRead, BufReader, Read, Write};
+mod support;
+
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 const PATIENCE: Duration = Duration::from_secs(30);
@@ -58,14 +59,7 @@ impl Server {
             .stderr(log_file)
             .spawn()
             .expect("sh starts");
-        let stdout = child.stdout.take().expect("piped stdout");
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut first = String::new();
-            let _ = BufReader::new(stdout).read_line(&mut first);
-            let _ = tx.send(first);
-        });
-        let line = rx.recv_timeout(PATIENCE).unwrap_or_default();
+        let line = support::first_stdout_line(&mut child, PATIENCE);
         let address = line
             .trim()
             .strip_prefix("listening on http://")

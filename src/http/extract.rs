@@ -126,20 +126,13 @@ pub async fn read_body(request: Request, limit_bytes: usize) -> Result<Bytes, Bo
 
 /// `request` with its body read into memory (at most `limit_bytes`, as [`read_body`]), for
 /// extractors that parse a body of their own (axum's `Multipart`) and should meet the same
-/// limit and the same drained 413 as every other body. Headers and extensions are kept.
+/// limit and the same drained 413 as every other body. Headers and extensions are kept. The
+/// bytes pass through `wrap` before they become the body again (to tie something to their
+/// lifetime, as [`Bytes::from_owner`] does; `|bytes| bytes` for nothing).
 ///
 /// # Errors
 /// As [`read_body`].
-pub async fn buffer_body(request: Request, limit_bytes: usize) -> Result<Request, BodyError> {
-    buffer_body_with(request, limit_bytes, |bytes| bytes).await
-}
-
-/// As [`buffer_body`], the bytes passed through `wrap` before they become the body again
-/// (to tie something to their lifetime, as [`Bytes::from_owner`] does).
-///
-/// # Errors
-/// As [`read_body`].
-pub async fn buffer_body_with(
+pub async fn buffer_body(
     request: Request,
     limit_bytes: usize,
     wrap: impl FnOnce(Bytes) -> Bytes,
@@ -333,11 +326,13 @@ mod tests {
             header::CONTENT_TYPE,
             HeaderValue::from_static("text/x-test"),
         );
-        let buffered = buffer_body(original, 10).await.expect("within the limit");
+        let buffered = buffer_body(original, 10, |b| b)
+            .await
+            .expect("within the limit");
         assert_eq!(buffered.headers()[header::CONTENT_TYPE], "text/x-test");
         let body = read_body(buffered, 10).await;
         assert_eq!(body, Ok(Bytes::from_static(b"0123456789")));
-        let err = buffer_body(request(b"0123456789x", None), 10).await;
+        let err = buffer_body(request(b"0123456789x", None), 10, |b| b).await;
         assert_eq!(
             err.map(|_| ()),
             Err(BodyError::TooLarge { limit_bytes: 10 })

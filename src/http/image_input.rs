@@ -166,7 +166,7 @@ async fn multipart_input(
         .with_field(parameter)
         .into());
     }
-    let request = extract::buffer_body_with(request, limit_bytes, |body| budgeted(body, permit))
+    let request = extract::buffer_body(request, limit_bytes, |body| budgeted(body, permit))
         .await
         .map_err(|e| body_error(e, ErrorCode::MalformedMultipart))?;
     let mut multipart = Multipart::from_request(request, state)

@@ -93,10 +93,8 @@ fn quaternion() -> Value {
 /// Merges `extra`'s keys into the object at `pointer` (keeping its description and the
 /// rest); nothing when the document has no such object.
 fn merge(doc: &mut Value, pointer: &str, extra: &Value) {
-    if let (Some(Value::Object(target)), Value::Object(extra)) = (doc.pointer_mut(pointer), extra) {
-        for (key, value) in extra {
-            target.insert(key.clone(), value.clone());
-        }
+    if let Some(target) = doc.pointer_mut(pointer) {
+        merge_value(target, extra);
     }
 }
 
@@ -312,6 +310,7 @@ fn tighten_query_parameters(doc: &mut Value) {
     }
 }
 
+/// Merges `extra`'s keys into `target` when both are objects.
 fn merge_value(target: &mut Value, extra: &Value) {
     if let (Value::Object(target), Value::Object(extra)) = (target, extra) {
         for (key, value) in extra {

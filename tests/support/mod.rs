@@ -1,5 +1,6 @@
-//! Shared by `tests/annotated.rs`, `tests/browser/` and `tests/memory_budget.rs`: the real
-//! `qrpose serve` on a free port, and photos made by `qrpose render` with their ground truth.
+//! Shared by the tests that run the real binary (`annotated`, `browser`, `memory_budget`,
+//! `curl_suite`, `fd_exhaustion`): `qrpose serve` on a free port, its first stdout line, and
+//! photos made by `qrpose render` with their ground truth.
 
 #![allow(dead_code)]
 
@@ -42,14 +43,7 @@ impl Server {
             .stderr(Stdio::inherit())
             .spawn()
             .expect("qrpose serve starts");
-        let stdout = child.stdout.take().expect("piped stdout");
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let mut first = String::new();
-            let _ = BufReader::new(stdout).read_line(&mut first);
-            let _ = tx.send(first);
-        });
-        let line = rx.recv_timeout(START_PATIENCE).unwrap_or_default();
+        let line = first_stdout_line(&mut child, START_PATIENCE);
         let base_url = line
             .trim()
             .strip_prefix("listening on ")
@@ -74,6 +68,21 @@ impl Drop for Server {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// The first line `child` writes to its piped stdout (`qrpose serve` prints `listening on
+/// http://…` there), or an empty string when none comes within `patience`.
+pub fn first_stdout_line(child: &mut Child, patience: Duration) -> String {
+    let Some(stdout) = child.stdout.take() else {
+        return String::new();
+    };
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut first = String::new();
+        let _ = BufReader::new(stdout).read_line(&mut first);
+        let _ = tx.send(first);
+    });
+    rx.recv_timeout(patience).unwrap_or_default()
 }
 
 /// A directory of this test binary's own under Cargo's test scratch space.
