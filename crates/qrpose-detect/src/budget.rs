@@ -133,7 +133,18 @@ impl PassLog {
         decoded: impl Fn(&T) -> usize,
         pass: impl FnOnce() -> T,
     ) -> T {
-        let started = Instant::now();
+        self.run_since(Instant::now(), name, decoded, pass)
+    }
+
+    /// [`Self::run`] for a pass whose preparation (building its image variant) began at
+    /// `started`: the report's time covers both.
+    pub fn run_since<T>(
+        &mut self,
+        started: Instant,
+        name: impl Into<String>,
+        decoded: impl Fn(&T) -> usize,
+        pass: impl FnOnce() -> T,
+    ) -> T {
         let out = pass();
         self.passes.push(PassReport {
             name: name.into(),
