@@ -5,6 +5,12 @@
 //!    screens and blur read better; a zxing-cpp build reads with zxing-cpp first. Every
 //!    symbol is kept, however many (a shelf shows dozens), and every finder-pattern triple
 //!    that did not read becomes a [`Region`].
+//!
+//!    When step 1 found nothing at all (no symbol, no triple), `balanced` and `thorough` read
+//!    an unsharp-masked copy of frames up to [`UPSCALE_MAX_SIDE_PX`] once more
+//!    ([`find_sharpened`]): small codes under blur lose their finder patterns' light ring
+//!    to the binariser; small triples found only there get one double-scale sharpened read
+//!    of their crop.
 //! 2. **Look closer** (`balanced`, `thorough`): only where a region is, never on the whole
 //!    frame: a crop around it goes through the other binariser, rqrr, and the image
 //!    variants of [`crate::filters`] (global histogram, denoised, contrast-stretched,
@@ -296,6 +302,77 @@ fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &mut PassLog)
     }
 }
 
+/// Step 1½ (`balanced`, `thorough`), when step 1 found nothing at all, neither a symbol nor
+/// a finder-pattern triple, on frames of at most [`UPSCALE_MAX_SIDE_PX`]: rxing on an
+/// unsharp-masked copy ([`SHARPEN_SIGMA_PX`], [`SHARPEN_AMOUNT`]). Small codes under blur
+/// (about 2-3 px per module, blur σ ≈ 1 px) lose the light ring of their finder patterns to
+/// the binariser, so step 1 sees no triple and step 2 no region; sharpening gives the ring
+/// back. The triples it finds but cannot read are not made regions for step 2 (on textured
+/// frames without a code the sharpened noise yields spurious triples, whose crops would take
+/// step 2's passes up to the deadline): the small ones among them get one double-scale
+/// sharpened read of their crop, at most [`SHARPENED_REGIONS_MAX`] of them. A frame with no
+/// finder-like structure pays the sharpened read once.
+fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
+    let image = finds.image;
+    if image.width().max(image.height()) > UPSCALE_MAX_SIDE_PX || !log.may_continue() {
+        return;
+    }
+    let started = Instant::now();
+    let Some(sharp) = sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT) else {
+        return;
+    };
+    let (read, regions) = log.run_since(
+        started,
+        "rxing sharpened",
+        |r: &(Vec<Candidate>, Vec<Region>)| decoded(&r.0),
+        || rxing::RxingDetector::hybrid().detect_with_regions(&sharp),
+    );
+    finds.add(read);
+    drop(sharp);
+    let small = regions
+        .into_iter()
+        .filter(|r| (r.hi_u - r.lo_u).max(r.hi_v - r.lo_v) <= SHARPENED_REGION_MAX_SIDE_PX);
+    for (k, region) in unread_regions(small.collect(), &finds.found)
+        .iter()
+        .take(SHARPENED_REGIONS_MAX)
+        .enumerate()
+    {
+        let Some(crop) = Crop::of_region(image, region) else {
+            continue;
+        };
+        let Some(pixels) = crop.image.as_ref() else {
+            continue;
+        };
+        let double_sharpened = second_passes(pixels, Backend::Rxing)
+            .into_iter()
+            .find(|p| p.name == "double sharpened");
+        let Some(pass) = double_sharpened else {
+            continue;
+        };
+        let Some(read) = pass.run(
+            &format!("sharpened region {k} "),
+            log,
+            |d, variant, scale| {
+                d.detect(variant)
+                    .into_iter()
+                    .map(|c| crop.to_source(rescale(c, scale)))
+                    .collect()
+            },
+        ) else {
+            return;
+        };
+        finds.add(read);
+    }
+}
+
+/// Finder-pattern triples found only on the sharpened copy ([`find_sharpened`]) get one
+/// more look, a double-scale sharpened read of their crop, when their box is at most this
+/// long (px): the pass is there for small codes, and the bound keeps spurious triples in
+/// the texture of a frame without a code from costing more than a few small reads.
+pub const SHARPENED_REGION_MAX_SIDE_PX: f64 = 160.0;
+/// At most this many such triples get that look.
+pub const SHARPENED_REGIONS_MAX: usize = 4;
+
 /// The longest side of the smallest level of step 1, px.
 pub const SMALL_LEVEL_MAX_SIDE_PX: usize = 800;
 /// The smallest level is at least quarter scale when its shorter side stays at least this
@@ -458,6 +535,9 @@ pub(crate) fn find_candidates(
     };
     find(&mut finds, effort, best, log);
     if effort != Effort::Fast {
+        if finds.found.is_empty() && finds.regions.is_empty() {
+            find_sharpened(&mut finds, log);
+        }
         regions(&mut finds, best, log);
     }
     let small_frame = image.pixels().len() <= WHOLE_FRAME_MAX_PIXELS && !any_decoded(&finds.found);
