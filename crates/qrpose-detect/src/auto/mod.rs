@@ -27,7 +27,7 @@
 #![allow(clippy::cast_possible_truncation)]
 
 use crate::budget::{Effort, PassLog};
-use crate::filters::{downscale_half, invert, sharpen, stretch_contrast, upscale_double};
+use crate::filters::{downscale_half, sharpen};
 use crate::gray::GrayImage;
 use crate::merge::{any_decoded, reread_undecoded, same_symbol};
 use crate::region::{Crop, Region, unread_regions};
@@ -36,8 +36,14 @@ use crate::zxing_cpp;
 use crate::{Backend, Candidate, Detector, auto_order, detector_for, merge_candidates};
 use crate::{rqrr, rxing};
 use qrpose_core::geometry::frames::PixelPoint;
-use std::borrow::Cow;
 use std::time::Instant;
+
+mod passes;
+pub use passes::{
+    DENOISE_SIGMA_PX, SHARPEN_AMOUNT, SHARPEN_DOUBLE_AMOUNT, SHARPEN_DOUBLE_SIGMA_PX,
+    SHARPEN_SIGMA_PX,
+};
+use passes::{decoded, look_closer, rescale, second_passes};
 
 /// Images up to this many px on their longer side get a double-scale second pass (the last
 /// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
@@ -51,161 +57,10 @@ pub const UPSCALE_MAX_SIDE_PX: usize = 1920;
 /// could stop. On larger frames rqrr still reads every region's crop.
 pub const RQRR_WHOLE_FRAME_MAX_PIXELS: usize = 4_000_000;
 
-/// One second pass of `auto`: a detector on a variant of the image, built only when the
-/// pass runs (inside its timed [`PassLog`] entry, after the deadline was checked), and the
-/// scale that maps the variant's pixels back (source px per variant px).
-struct SecondPass<'a> {
-    name: &'static str,
-    detector: Box<dyn Detector>,
-    /// The variant; `None` when it would not differ from what was read (e.g. a contrast
-    /// stretch of an image that spans 0-255 already): the pass is then skipped.
-    variant: Box<dyn FnOnce() -> Option<Cow<'a, GrayImage>> + 'a>,
-    scale: f64,
-}
-
-impl<'a> SecondPass<'a> {
-    fn new(
-        name: &'static str,
-        detector: Option<Box<dyn Detector>>,
-        scale: f64,
-        variant: impl FnOnce() -> Option<Cow<'a, GrayImage>> + 'a,
-    ) -> Option<Self> {
-        Some(Self {
-            name,
-            detector: detector?,
-            variant: Box::new(variant),
-            scale,
-        })
-    }
-
-    /// Runs the pass, logged as `prefix` + its name, when the deadline allows and its
-    /// variant exists; `read` turns the detector's candidates on the variant into the
-    /// caller's. `None` when the deadline has passed (nothing was built).
-    fn run(
-        self,
-        prefix: &str,
-        log: &mut PassLog,
-        read: impl FnOnce(&dyn Detector, &GrayImage, f64) -> Vec<Candidate>,
-    ) -> Option<Vec<Candidate>> {
-        if !log.may_continue() {
-            return None;
-        }
-        let started = Instant::now();
-        let Some(variant) = (self.variant)() else {
-            return Some(Vec::new());
-        };
-        Some(log.run_since(
-            started,
-            format!("{prefix}{}", self.name),
-            |v: &Vec<Candidate>| decoded(v),
-            || read(self.detector.as_ref(), &variant, self.scale),
-        ))
-    }
-}
-
-/// Blur of the blurred global-histogram pass, px: it smooths halftone and sensor noise of
-/// small photos before the single threshold.
-pub const DENOISE_SIGMA_PX: f64 = 1.0;
-
-/// The second passes of `auto`, cheapest first, each variant built only when its pass runs:
-/// 1. the best backend with the global-histogram binariser, on the image and on a copy
-///    blurred by [`DENOISE_SIGMA_PX`] (small noisy photos that the local binariser breaks
-///    up);
-/// 2. the best backend on a contrast-stretched, an inverted (unless zxing-cpp, which reads
-///    the negative itself, is the best) and a sharpened ([`sharpen`]) copy;
-/// 3. on a double-scale copy, plain and sharpened (images of at most
-///    [`UPSCALE_MAX_SIDE_PX`]).
-///
-/// zxing-cpp runs its single-read settings here: its thorough one would read each variant
-/// again downscaled and inverted, which its own full pass has covered.
-fn second_passes(image: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
-    let local = move || -> Option<Box<dyn Detector>> {
-        match best {
-            #[cfg(feature = "zxing-cpp")]
-            Backend::ZxingCpp => Some(Box::new(zxing_cpp::ZxingCppDetector::fast())),
-            other => detector_for(other).ok(),
-        }
-    };
-    let global = move || -> Option<Box<dyn Detector>> {
-        match best {
-            #[cfg(feature = "zxing-cpp")]
-            Backend::ZxingCpp => Some(Box::new(zxing_cpp::ZxingCppDetector::global_histogram())),
-            Backend::Rqrr => None,
-            _ => Some(Box::new(rxing::RxingDetector::global_histogram())),
-        }
-    };
-    let owned = |variant: Option<GrayImage>| variant.map(Cow::Owned);
-    let small = image.width().max(image.height()) <= UPSCALE_MAX_SIDE_PX;
-    let mut passes = vec![
-        SecondPass::new("global-histogram", global(), 1.0, move || {
-            Some(Cow::Borrowed(image))
-        }),
-        SecondPass::new("denoised", global(), 1.0, move || {
-            owned(sharpen(image, DENOISE_SIGMA_PX, -1.0))
-        }),
-        SecondPass::new("stretched", local(), 1.0, move || {
-            owned(stretch_contrast(image))
-        }),
-    ];
-    if best != Backend::ZxingCpp {
-        passes.push(SecondPass::new("inverted", local(), 1.0, move || {
-            owned(invert(image))
-        }));
-    }
-    passes.push(SecondPass::new("sharpened", local(), 1.0, move || {
-        owned(sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT))
-    }));
-    if small {
-        passes.push(SecondPass::new("double", local(), 0.5, move || {
-            owned(upscale_double(image))
-        }));
-        passes.push(SecondPass::new(
-            "double sharpened",
-            local(),
-            0.5,
-            move || {
-                let double = upscale_double(image)?;
-                owned(sharpen(
-                    &double,
-                    2.0 * SHARPEN_DOUBLE_SIGMA_PX,
-                    SHARPEN_DOUBLE_AMOUNT,
-                ))
-            },
-        ));
-    }
-    passes.into_iter().flatten().collect()
-}
-
-/// Unsharp mask of the sharpened second pass: Gaussian σ, source px.
-pub const SHARPEN_SIGMA_PX: f64 = 1.5;
-/// Unsharp mask of the sharpened second pass: amount (1 doubles the detail).
-pub const SHARPEN_AMOUNT: f64 = 2.0;
-/// Unsharp mask of the sharpened double-scale pass: Gaussian σ, source px.
-pub const SHARPEN_DOUBLE_SIGMA_PX: f64 = 1.0;
-/// Unsharp mask of the sharpened double-scale pass: amount.
-pub const SHARPEN_DOUBLE_AMOUNT: f64 = 3.0;
-
-/// Maps candidates found on a downscaled copy (`scale` source px per copy px) back to the
-/// source: pixel centres scale about −0.5.
-fn rescale(mut c: Candidate, scale: f64) -> Candidate {
-    if scale != 1.0 {
-        c.corners_px = c
-            .corners_px
-            .map(|p| PixelPoint::new((p.u() + 0.5) * scale - 0.5, (p.v() + 0.5) * scale - 0.5));
-        // The module count measured on the copy is still right; whole-pixel corners are not.
-    }
-    c
-}
-
 /// Images whose shorter side has at least this many px are also read at half scale by
 /// `balanced` and `thorough` (smaller ones are read at full resolution only): a quarter of
 /// the pixels, where codes that fill the frame and moiré read better.
 pub const HALF_SCALE_FIRST_MIN_SIDE_PX: usize = 700;
-
-/// Decoded symbols in a pass's result.
-fn decoded(found: &[Candidate]) -> usize {
-    found.iter().filter(|c| c.payload.is_some()).count()
-}
 
 /// What the passes so far have found.
 struct Finds<'a> {
@@ -427,20 +282,6 @@ fn read_level(
         .extend(regions.into_iter().map(|r| r.rescaled(scale)));
 }
 
-/// The passes of step 2 on one crop, cheapest first: the image variants of
-/// [`second_passes`], then rqrr (its own finder search; the slowest, 20-30 ms even on a
-/// small crop).
-fn look_closer(crop: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
-    let mut passes = second_passes(crop, best);
-    passes.extend(SecondPass::new(
-        "rqrr",
-        Some(Box::new(rqrr::RqrrDetector)),
-        1.0,
-        move || Some(Cow::Borrowed(crop)),
-    ));
-    passes
-}
-
 /// Step 2: more passes on each unread region's crop, until it reads or the deadline comes.
 fn regions(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
     let regions = unread_regions(std::mem::take(&mut finds.regions), &finds.found);
@@ -548,86 +389,4 @@ pub(crate) fn find_candidates(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use std::cell::Cell;
-    use std::time::Duration;
-
-    fn tiny() -> GrayImage {
-        GrayImage::new(4, 4, vec![128; 16]).expect("a size")
-    }
-
-    /// A second pass builds its variant only after the deadline check: a spent deadline
-    /// builds nothing (on a 1080p frame the double-scale sharpened variant alone cost tens
-    /// of ms that no pass report showed), and a pass that runs is logged once.
-    #[test]
-    fn a_second_pass_builds_its_variant_only_when_it_may_run() {
-        let image = tiny();
-        let built = Cell::new(0);
-        let image = &image;
-        let built = &built;
-        let pass = || {
-            SecondPass::new("probe", detector_for(Backend::Rxing).ok(), 1.0, move || {
-                built.set(built.get() + 1);
-                Some(Cow::Borrowed(image))
-            })
-            .expect("rxing is always built")
-        };
-        let mut spent = PassLog::new(Duration::ZERO);
-        assert!(
-            pass()
-                .run("whole ", &mut spent, |_, _, _| Vec::new())
-                .is_none()
-        );
-        assert_eq!(built.get(), 0, "nothing is built after the deadline");
-        assert!(spent.budget_exhausted && spent.passes.is_empty());
-
-        let mut roomy = PassLog::new(Duration::from_secs(60));
-        let read = pass().run("whole ", &mut roomy, |_, variant, scale| {
-            assert_eq!((variant.width(), scale), (4, 1.0));
-            Vec::new()
-        });
-        assert_eq!(read, Some(Vec::new()));
-        assert_eq!(built.get(), 1);
-        let names: Vec<&str> = roomy.passes.iter().map(|p| p.name.as_str()).collect();
-        assert_eq!(names, ["whole probe"]);
-    }
-
-    /// A variant that does not exist (nothing to stretch) skips its pass without a report.
-    #[test]
-    fn a_pass_without_a_variant_is_skipped_silently() {
-        let mut log = PassLog::new(Duration::from_secs(60));
-        let pass = SecondPass::new("stretched", detector_for(Backend::Rxing).ok(), 1.0, || None)
-            .expect("rxing is always built");
-        let read = pass.run("region 0 ", &mut log, |_, _, _| unreachable!("no variant"));
-        assert_eq!(read, Some(Vec::new()));
-        assert!(log.passes.is_empty() && !log.budget_exhausted);
-    }
-
-    /// The passes offered for a small frame, in order, without building any variant.
-    #[test]
-    fn second_passes_are_listed_cheapest_first() {
-        let image = tiny();
-        let names: Vec<&str> = second_passes(&image, Backend::Rxing)
-            .iter()
-            .map(|p| p.name)
-            .collect();
-        assert_eq!(
-            names,
-            [
-                "global-histogram",
-                "denoised",
-                "stretched",
-                "inverted",
-                "sharpened",
-                "double",
-                "double sharpened"
-            ]
-        );
-        let closer: Vec<&str> = look_closer(&image, Backend::Rxing)
-            .iter()
-            .map(|p| p.name)
-            .collect();
-        assert_eq!(closer.last(), Some(&"rqrr"));
-    }
-}
+mod tests;

@@ -1,0 +1,181 @@
+//! The second passes of `auto`: a detector on an image variant (global histogram,
+//! denoised, stretched, inverted, sharpened, double scale), each variant built only when its
+//! pass runs, and the mapping of what they find back to the source pixels.
+
+use crate::budget::PassLog;
+use crate::filters::{invert, sharpen, stretch_contrast, upscale_double};
+use crate::gray::GrayImage;
+#[cfg(feature = "zxing-cpp")]
+use crate::zxing_cpp;
+use crate::{Backend, Candidate, Detector, detector_for};
+use crate::{rqrr, rxing};
+use qrpose_core::geometry::frames::PixelPoint;
+use std::borrow::Cow;
+use std::time::Instant;
+
+use super::UPSCALE_MAX_SIDE_PX;
+
+/// One second pass of `auto`: a detector on a variant of the image, built only when the
+/// pass runs (inside its timed [`PassLog`] entry, after the deadline was checked), and the
+/// scale that maps the variant's pixels back (source px per variant px).
+pub(super) struct SecondPass<'a> {
+    pub(super) name: &'static str,
+    detector: Box<dyn Detector>,
+    /// The variant; `None` when it would not differ from what was read (e.g. a contrast
+    /// stretch of an image that spans 0-255 already): the pass is then skipped.
+    variant: Box<dyn FnOnce() -> Option<Cow<'a, GrayImage>> + 'a>,
+    scale: f64,
+}
+
+impl<'a> SecondPass<'a> {
+    pub(super) fn new(
+        name: &'static str,
+        detector: Option<Box<dyn Detector>>,
+        scale: f64,
+        variant: impl FnOnce() -> Option<Cow<'a, GrayImage>> + 'a,
+    ) -> Option<Self> {
+        Some(Self {
+            name,
+            detector: detector?,
+            variant: Box::new(variant),
+            scale,
+        })
+    }
+
+    /// Runs the pass, logged as `prefix` + its name, when the deadline allows and its
+    /// variant exists; `read` turns the detector's candidates on the variant into the
+    /// caller's. `None` when the deadline has passed (nothing was built).
+    pub(super) fn run(
+        self,
+        prefix: &str,
+        log: &mut PassLog,
+        read: impl FnOnce(&dyn Detector, &GrayImage, f64) -> Vec<Candidate>,
+    ) -> Option<Vec<Candidate>> {
+        if !log.may_continue() {
+            return None;
+        }
+        let started = Instant::now();
+        let Some(variant) = (self.variant)() else {
+            return Some(Vec::new());
+        };
+        Some(log.run_since(
+            started,
+            format!("{prefix}{}", self.name),
+            |v: &Vec<Candidate>| decoded(v),
+            || read(self.detector.as_ref(), &variant, self.scale),
+        ))
+    }
+}
+
+/// Blur of the blurred global-histogram pass, px: it smooths halftone and sensor noise of
+/// small photos before the single threshold.
+pub const DENOISE_SIGMA_PX: f64 = 1.0;
+
+/// The second passes of `auto`, cheapest first, each variant built only when its pass runs:
+/// 1. the best backend with the global-histogram binariser, on the image and on a copy
+///    blurred by [`DENOISE_SIGMA_PX`] (small noisy photos that the local binariser breaks
+///    up);
+/// 2. the best backend on a contrast-stretched, an inverted (unless zxing-cpp, which reads
+///    the negative itself, is the best) and a sharpened ([`sharpen`]) copy;
+/// 3. on a double-scale copy, plain and sharpened (images of at most
+///    [`UPSCALE_MAX_SIDE_PX`]).
+///
+/// zxing-cpp runs its single-read settings here: its thorough one would read each variant
+/// again downscaled and inverted, which its own full pass has covered.
+pub(super) fn second_passes(image: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
+    let local = move || -> Option<Box<dyn Detector>> {
+        match best {
+            #[cfg(feature = "zxing-cpp")]
+            Backend::ZxingCpp => Some(Box::new(zxing_cpp::ZxingCppDetector::fast())),
+            other => detector_for(other).ok(),
+        }
+    };
+    let global = move || -> Option<Box<dyn Detector>> {
+        match best {
+            #[cfg(feature = "zxing-cpp")]
+            Backend::ZxingCpp => Some(Box::new(zxing_cpp::ZxingCppDetector::global_histogram())),
+            Backend::Rqrr => None,
+            _ => Some(Box::new(rxing::RxingDetector::global_histogram())),
+        }
+    };
+    let owned = |variant: Option<GrayImage>| variant.map(Cow::Owned);
+    let small = image.width().max(image.height()) <= UPSCALE_MAX_SIDE_PX;
+    let mut passes = vec![
+        SecondPass::new("global-histogram", global(), 1.0, move || {
+            Some(Cow::Borrowed(image))
+        }),
+        SecondPass::new("denoised", global(), 1.0, move || {
+            owned(sharpen(image, DENOISE_SIGMA_PX, -1.0))
+        }),
+        SecondPass::new("stretched", local(), 1.0, move || {
+            owned(stretch_contrast(image))
+        }),
+    ];
+    if best != Backend::ZxingCpp {
+        passes.push(SecondPass::new("inverted", local(), 1.0, move || {
+            owned(invert(image))
+        }));
+    }
+    passes.push(SecondPass::new("sharpened", local(), 1.0, move || {
+        owned(sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT))
+    }));
+    if small {
+        passes.push(SecondPass::new("double", local(), 0.5, move || {
+            owned(upscale_double(image))
+        }));
+        passes.push(SecondPass::new(
+            "double sharpened",
+            local(),
+            0.5,
+            move || {
+                let double = upscale_double(image)?;
+                owned(sharpen(
+                    &double,
+                    2.0 * SHARPEN_DOUBLE_SIGMA_PX,
+                    SHARPEN_DOUBLE_AMOUNT,
+                ))
+            },
+        ));
+    }
+    passes.into_iter().flatten().collect()
+}
+
+/// Unsharp mask of the sharpened second pass: Gaussian σ, source px.
+pub const SHARPEN_SIGMA_PX: f64 = 1.5;
+/// Unsharp mask of the sharpened second pass: amount (1 doubles the detail).
+pub const SHARPEN_AMOUNT: f64 = 2.0;
+/// Unsharp mask of the sharpened double-scale pass: Gaussian σ, source px.
+pub const SHARPEN_DOUBLE_SIGMA_PX: f64 = 1.0;
+/// Unsharp mask of the sharpened double-scale pass: amount.
+pub const SHARPEN_DOUBLE_AMOUNT: f64 = 3.0;
+
+/// Maps candidates found on a downscaled copy (`scale` source px per copy px) back to the
+/// source: pixel centres scale about −0.5.
+pub(super) fn rescale(mut c: Candidate, scale: f64) -> Candidate {
+    if scale != 1.0 {
+        c.corners_px = c
+            .corners_px
+            .map(|p| PixelPoint::new((p.u() + 0.5) * scale - 0.5, (p.v() + 0.5) * scale - 0.5));
+        // The module count measured on the copy is still right; whole-pixel corners are not.
+    }
+    c
+}
+
+/// Decoded symbols in a pass's result.
+pub(super) fn decoded(found: &[Candidate]) -> usize {
+    found.iter().filter(|c| c.payload.is_some()).count()
+}
+
+/// The passes of step 2 on one crop, cheapest first: the image variants of
+/// [`second_passes`], then rqrr (its own finder search; the slowest, 20-30 ms even on a
+/// small crop).
+pub(super) fn look_closer(crop: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
+    let mut passes = second_passes(crop, best);
+    passes.extend(SecondPass::new(
+        "rqrr",
+        Some(Box::new(rqrr::RqrrDetector)),
+        1.0,
+        move || Some(Cow::Borrowed(crop)),
+    ));
+    passes
+}
