@@ -15,7 +15,7 @@
 //!    frame: a crop around it goes through the other binariser, rqrr, and the image
 //!    variants of [`crate::filters`] (global histogram, denoised, contrast-stretched,
 //!    inverted, sharpened, double scale) until it reads. A frame with nothing finder-like
-//!    costs the two reads of step 1 and nothing more.
+//!    costs the reads of step 1 and the sharpened read, nothing more.
 //! 3. **Everything** (`thorough`): every backend and every variant on the whole frame, as
 //!    long as the deadline allows (rqrr on frames of at most [`RQRR_WHOLE_FRAME_MAX_PIXELS`]).
 //!
@@ -43,7 +43,7 @@ pub use passes::{
     DENOISE_SIGMA_PX, SHARPEN_AMOUNT, SHARPEN_DOUBLE_AMOUNT, SHARPEN_DOUBLE_SIGMA_PX,
     SHARPEN_SIGMA_PX,
 };
-use passes::{decoded, look_closer, rescale, second_passes};
+use passes::{decoded, double_sharpened, look_closer, read_crop, rescale, second_passes};
 
 /// Images up to this many px on their longer side get a double-scale second pass (the last
 /// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
@@ -198,21 +198,13 @@ fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
         let Some(pixels) = crop.image.as_ref() else {
             continue;
         };
-        let double_sharpened = second_passes(pixels, Backend::Rxing)
-            .into_iter()
-            .find(|p| p.name == "double sharpened");
-        let Some(pass) = double_sharpened else {
+        let Some(pass) = double_sharpened(pixels, detector_for(Backend::Rxing).ok()) else {
             continue;
         };
         let Some(read) = pass.run(
             &format!("sharpened region {k} "),
             log,
-            |d, variant, scale| {
-                d.detect(variant)
-                    .into_iter()
-                    .map(|c| crop.to_source(rescale(c, scale)))
-                    .collect()
-            },
+            |d, variant, scale| read_crop(&crop, d, variant, scale),
         ) else {
             return;
         };
@@ -293,12 +285,8 @@ fn regions(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
             continue;
         };
         for pass in look_closer(pixels, best) {
-            let Some(read) = pass.run(&format!("region {k} "), log, |detector, variant, scale| {
-                detector
-                    .detect(variant)
-                    .into_iter()
-                    .map(|c| crop.to_source(rescale(c, scale)))
-                    .collect()
+            let Some(read) = pass.run(&format!("region {k} "), log, |d, variant, scale| {
+                read_crop(&crop, d, variant, scale)
             }) else {
                 return;
             };

@@ -5,6 +5,7 @@
 use crate::budget::PassLog;
 use crate::filters::{invert, sharpen, stretch_contrast, upscale_double};
 use crate::gray::GrayImage;
+use crate::region::Crop;
 #[cfg(feature = "zxing-cpp")]
 use crate::zxing_cpp;
 use crate::{Backend, Candidate, Detector, detector_for};
@@ -67,6 +68,38 @@ impl<'a> SecondPass<'a> {
     }
 }
 
+/// The double-scale sharpened pass of `detector` on `image` (the last of
+/// [`second_passes`]); `None` without a detector.
+pub(super) fn double_sharpened(
+    image: &GrayImage,
+    detector: Option<Box<dyn Detector>>,
+) -> Option<SecondPass<'_>> {
+    SecondPass::new("double sharpened", detector, 0.5, move || {
+        let double = upscale_double(image)?;
+        sharpen(
+            &double,
+            2.0 * SHARPEN_DOUBLE_SIGMA_PX,
+            SHARPEN_DOUBLE_AMOUNT,
+        )
+        .map(Cow::Owned)
+    })
+}
+
+/// What a pass on a crop found, in the source's pixels: `detector` on `variant` (`scale`
+/// crop px per variant px), mapped back through `crop`.
+pub(super) fn read_crop(
+    crop: &Crop,
+    detector: &dyn Detector,
+    variant: &GrayImage,
+    scale: f64,
+) -> Vec<Candidate> {
+    detector
+        .detect(variant)
+        .into_iter()
+        .map(|c| crop.to_source(rescale(c, scale)))
+        .collect()
+}
+
 /// Blur of the blurred global-histogram pass, px: it smooths halftone and sensor noise of
 /// small photos before the single threshold.
 pub const DENOISE_SIGMA_PX: f64 = 1.0;
@@ -123,19 +156,7 @@ pub(super) fn second_passes(image: &GrayImage, best: Backend) -> Vec<SecondPass<
         passes.push(SecondPass::new("double", local(), 0.5, move || {
             owned(upscale_double(image))
         }));
-        passes.push(SecondPass::new(
-            "double sharpened",
-            local(),
-            0.5,
-            move || {
-                let double = upscale_double(image)?;
-                owned(sharpen(
-                    &double,
-                    2.0 * SHARPEN_DOUBLE_SIGMA_PX,
-                    SHARPEN_DOUBLE_AMOUNT,
-                ))
-            },
-        ));
+        passes.push(double_sharpened(image, local()));
     }
     passes.into_iter().flatten().collect()
 }
