@@ -1,6 +1,9 @@
 //! The price of the overlay: `POST /v1/pose/image/annotated` against `POST /v1/pose/image`
 //! on the same 1280×720 frame (issue 15's target: at most 1.3×), as the two routes' worker
-//! jobs run them. The HTTP layer around each is the same and costs tens of µs.
+//! jobs run them. The HTTP layer around each is the same and costs tens of µs. The frame is
+//! a grey JPEG, so the JPEG variant splices (src/annotate/jpeg_splice); "drawing only"
+//! times `annotated_image` alone, and "whole frame" the decode-draw-encode path it falls
+//! back to.
 //!
 //! ```sh
 //! taskset -c 0 cargo bench --bench annotate
@@ -13,7 +16,8 @@ mod common;
 use base64::Engine;
 use common::{FRAMES, frame};
 use criterion::{Criterion, criterion_group, criterion_main};
-use qrpose::annotate::{OutputFormat, annotated_image};
+use qrpose::annotate::raster::{Style, draw_overlay};
+use qrpose::annotate::{OutputFormat, annotated_image, codec, overlay};
 use qrpose::api::image::{ImageLimits, ImageQuery, ImageResponse, estimate_image_from_query};
 use std::hint::black_box;
 use std::time::Instant;
@@ -51,6 +55,21 @@ fn annotated(jpeg: &[u8], format: OutputFormat) -> Option<(Vec<u8>, String)> {
     Some((image, header))
 }
 
+/// The whole-frame path: decode in colour, draw, encode.
+fn whole_frame(jpeg: &[u8], response: &ImageResponse) -> Option<Vec<u8>> {
+    let camera = query()
+        .into_request()
+        .and_then(|r| r.validate(ImageLimits::default().max_detect_ms))
+        .ok()?
+        .setup
+        .camera;
+    let mut raster = codec::decode_rgb(jpeg).ok()?;
+    let style = Style::for_image(raster.width_px(), raster.height_px());
+    let overlay = overlay::overlay_of(response, &camera, style.label_height_px());
+    draw_overlay(&mut raster, &overlay, &style);
+    codec::encode_jpeg(&raster).ok()
+}
+
 /// The median time of `f` over `runs` calls, ms.
 fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
     let mut times: Vec<f64> = (0..runs)
@@ -78,6 +97,22 @@ fn bench(c: &mut Criterion) {
     });
     c.bench_function("annotated png 1280x720", |b| {
         b.iter(|| annotated(black_box(&jpeg), OutputFormat::Png))
+    });
+    let Some((response, _)) = plain(&jpeg) else {
+        return;
+    };
+    let camera = query()
+        .into_request()
+        .and_then(|r| r.validate(ImageLimits::default().max_detect_ms))
+        .ok()
+        .map(|r| r.setup.camera);
+    if let Some(camera) = camera {
+        c.bench_function("drawing only, jpeg 1280x720", |b| {
+            b.iter(|| annotated_image(black_box(&jpeg), &response, &camera, OutputFormat::Jpeg))
+        });
+    }
+    c.bench_function("drawing only, whole frame jpeg 1280x720", |b| {
+        b.iter(|| whole_frame(black_box(&jpeg), &response))
     });
     // The ratio, from interleaved runs so that both see the same machine load.
     let (mut plain_ms, mut annotated_ms) = (Vec::new(), Vec::new());

@@ -369,3 +369,89 @@ fn estimate_annotate_writes_the_same_picture_as_the_route() {
     );
     assert!(Path::new(&out).exists());
 }
+
+/// The sampling factors of a JPEG's components (SOF0/SOF1), as `h << 4 | v` bytes.
+fn jpeg_sampling(jpeg: &[u8]) -> Vec<u8> {
+    let mut at = 2;
+    while at + 4 <= jpeg.len() {
+        let (code, length) = (
+            jpeg[at + 1],
+            usize::from(u16::from_be_bytes([jpeg[at + 2], jpeg[at + 3]])),
+        );
+        if code == 0xC0 || code == 0xC1 {
+            let count = usize::from(jpeg[at + 9]);
+            return (0..count).map(|k| jpeg[at + 11 + 3 * k]).collect();
+        }
+        at += 2 + length;
+    }
+    panic!("no SOF0 or SOF1");
+}
+
+/// Pixels within `tolerance` of `colour` in every channel, as (x, y).
+fn pixels_near(image: &RgbImage, colour: [u8; 3], tolerance: u8) -> Vec<[f64; 2]> {
+    image
+        .enumerate_pixels()
+        .filter(|(_, _, p)| {
+            p.0.iter()
+                .zip(&colour)
+                .all(|(a, b)| a.abs_diff(*b) <= tolerance)
+        })
+        .map(|(x, y, _)| [f64::from(x), f64::from(y)])
+        .collect()
+}
+
+/// How far a spliced JPEG's corner-mark pixel may be from magenta in any channel: twice the
+/// worst measured (28, over the 288 pixels of the four marks: the splice gives the grey
+/// photo 4:4:4 chroma, and the photo is at quality 90). Nothing else gets near: the grey
+/// photo has no channel near 0 while another is near 255, and every other overlay colour is
+/// 255 off magenta in some channel.
+const SPLICED_MARK_TOLERANCE: u8 = 56;
+
+#[test]
+fn the_jpeg_variant_splices_the_photo_and_its_corner_marks_are_on_the_corners() {
+    let server = Server::start();
+    let (photo, _) = photo("spliced.jpg");
+
+    let response = post_annotated(&server, &photo, PHOTO_QUERY, Some("image/jpeg"));
+
+    assert_eq!(response.status(), StatusCode::OK);
+    assert_eq!(response.headers()[header::CONTENT_TYPE], "image/jpeg");
+    let result = result_of(&response);
+    assert_eq!(result.markers.len(), 1, "{result:?}");
+    let body = response.bytes().expect("a body");
+    // The grey photo was spliced (made YCbCr 4:4:4), not re-encoded whole (4:2:0).
+    assert_eq!(jpeg_sampling(&photo), vec![0x11]);
+    assert_eq!(jpeg_sampling(&body), vec![0x11, 0x11, 0x11]);
+    let image = decode(&body);
+    assert_eq!(image.dimensions(), (1280, 720));
+    let marks = pixels_near(&image, CORNER_MARK, SPLICED_MARK_TOLERANCE);
+    let window = MARK_WINDOW_PX as f64;
+    for (k, corner) in result.markers[0].corners_px.iter().enumerate() {
+        let near: Vec<_> = marks
+            .iter()
+            .filter(|m| (m[0] - corner[0]).abs() <= window && (m[1] - corner[1]).abs() <= window)
+            .collect();
+        assert!(
+            near.len() >= 20,
+            "corner {k}: {} mark pixels near {corner:?}",
+            near.len()
+        );
+        let n = near.len() as f64;
+        let centre = [
+            near.iter().map(|m| m[0]).sum::<f64>() / n,
+            near.iter().map(|m| m[1]).sum::<f64>() / n,
+        ];
+        let error_px = distance(centre, *corner);
+        assert!(
+            error_px <= TOLERANCE_PX,
+            "corner {k}: mark centred at {centre:?}, {error_px:.2} px from {corner:?}"
+        );
+    }
+    let stray = marks.iter().filter(|m| {
+        result.markers[0]
+            .corners_px
+            .iter()
+            .all(|c| (m[0] - c[0]).abs() > window || (m[1] - c[1]).abs() > window)
+    });
+    assert_eq!(stray.count(), 0, "magenta pixels away from every corner");
+}

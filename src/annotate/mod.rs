@@ -2,18 +2,25 @@
 //! `POST /v1/pose/image/annotated` and `qrpose estimate --image … --annotate OUT`.
 //!
 //! [`overlay`] turns an image response and its camera into pixel primitives (outlines,
-//! corner marks, payload labels, the projected axes of each pose); [`raster`] draws them;
-//! [`codec`] decodes the photo in colour and encodes the result as JPEG or PNG. Colours and
-//! what is drawn are listed in docs/service.md, The annotated image. The library crates
-//! know nothing of this: drawing is a concern of the service and the CLI.
+//! corner marks, payload labels, the projected axes of each pose); [`raster`] draws them.
+//! A JPEG photo asked for as JPEG is spliced ([`jpeg_splice`]): only the 8×8 blocks the
+//! overlay touches are re-encoded, the rest keeps the client's bytes. Otherwise, and
+//! whenever the splice cannot be exact, [`codec`] decodes the whole photo in colour and
+//! encodes the result as JPEG or PNG. Colours and what is drawn are listed in
+//! docs/service.md, The annotated image. The library crates know nothing of this: drawing
+//! is a concern of the service and the CLI.
 
 pub mod codec;
+pub mod jpeg_splice;
 pub mod overlay;
 pub mod raster;
 
 use crate::api::image::ImageResponse;
+use crate::detect::decode::{ImageFormat, sniff_format};
 use crate::geometry::camera::Camera;
 pub use codec::CodecError;
+use overlay::Overlay;
+use raster::{RgbRaster, Style};
 
 /// The encoding of an annotated image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -45,7 +52,9 @@ impl OutputFormat {
 
 /// The photo `bytes` with the overlay of `response` drawn on it, encoded as `format`.
 /// `camera` must be the one the poses of `response` were computed with (it projects their
-/// axes). CPU-bound: decode, draw, encode.
+/// axes). CPU-bound: a JPEG asked for as JPEG is spliced (only the blocks drawn into are
+/// re-encoded); anything else, or a JPEG [`jpeg_splice`] refuses, is decoded, drawn and
+/// encoded whole.
 ///
 /// # Errors
 /// [`CodecError`] when the photo cannot be decoded in colour or the result encoded.
@@ -55,10 +64,49 @@ pub fn annotated_image(
     camera: &Camera,
     format: OutputFormat,
 ) -> Result<Vec<u8>, CodecError> {
-    let mut raster = codec::decode_rgb(bytes)?;
-    let style = raster::Style::for_image(raster.width_px(), raster.height_px());
-    let overlay = overlay::overlay_of(response, camera, style.label_height_px());
-    raster::draw_overlay(&mut raster, &overlay, &style);
+    annotated_with(bytes, format, |label_height_px| {
+        overlay::overlay_of(response, camera, label_height_px)
+    })
+}
+
+/// [`annotated_image`] for the overlay `overlay_for(label height, px)`.
+pub(crate) fn annotated_with(
+    bytes: &[u8],
+    format: OutputFormat,
+    overlay_for: impl Fn(f64) -> Overlay,
+) -> Result<Vec<u8>, CodecError> {
+    if format == OutputFormat::Jpeg && sniff_format(bytes) == Some(ImageFormat::Jpeg) {
+        match spliced(bytes, &overlay_for) {
+            Ok(jpeg) => return Ok(jpeg),
+            Err(reason) => {
+                tracing::debug!(%reason, "annotated JPEG: re-encoding the whole frame");
+            }
+        }
+    }
+    redrawn(bytes, format, &overlay_for)
+}
+
+/// The JPEG `bytes` with the overlay spliced in.
+fn spliced(
+    bytes: &[u8],
+    overlay_for: &impl Fn(f64) -> Overlay,
+) -> Result<Vec<u8>, jpeg_splice::CannotSplice> {
+    let jpeg = jpeg_splice::Jpeg::parse(bytes)?;
+    let style = Style::for_image(jpeg.width_px(), jpeg.height_px());
+    let mut drawing = jpeg.canvas();
+    raster::draw_overlay(&mut drawing, &overlay_for(style.label_height_px()), &style);
+    Ok(jpeg.splice(&drawing)?.bytes)
+}
+
+/// The photo decoded whole, drawn on and encoded as `format`.
+pub(crate) fn redrawn(
+    bytes: &[u8],
+    format: OutputFormat,
+    overlay_for: &impl Fn(f64) -> Overlay,
+) -> Result<Vec<u8>, CodecError> {
+    let mut raster: RgbRaster = codec::decode_rgb(bytes)?;
+    let style = Style::for_image(raster.width_px(), raster.height_px());
+    raster::draw_overlay(&mut raster, &overlay_for(style.label_height_px()), &style);
     match format {
         OutputFormat::Jpeg => codec::encode_jpeg(&raster),
         OutputFormat::Png => codec::encode_png(&raster),

@@ -1,5 +1,7 @@
-//! Draws an [`Overlay`] onto an 8-bit RGB raster: solid colours, no anti-aliasing, so that
-//! every drawn pixel has exactly its primitive's colour (the pixel tests rely on it).
+//! Draws an [`Overlay`] onto a [`Canvas`]: an 8-bit RGB raster ([`RgbRaster`]), or a record of
+//! the pixels written MCU by MCU ([`super::jpeg_splice::Drawing`], for re-encoding only the
+//! JPEG blocks they touch). Solid colours, no anti-aliasing, so that every drawn pixel has
+//! exactly its primitive's colour (the pixel tests rely on it).
 //!
 //! Sizes grow with the image ([`Style::for_image`]) so the overlay reads the same on a phone
 //! frame and a 4K one. Pixel coordinates follow docs/conventions.md, Pixels: integer
@@ -48,14 +50,65 @@ impl RgbRaster {
     pub fn into_pixels(self) -> Vec<u8> {
         self.pixels
     }
+}
 
-    /// Sets pixel (x, y) when it lies inside the raster.
-    fn put(&mut self, x: i64, y: i64, colour: Rgb) {
-        if x < 0 || y < 0 || x as usize >= self.width_px || y as usize >= self.height_px {
-            return;
+/// Where the drawing functions put their pixels: a raster, or a record of the writes.
+pub trait Canvas {
+    /// Width, px.
+    fn width_px(&self) -> usize;
+    /// Height, px.
+    fn height_px(&self) -> usize;
+    /// Sets pixel (x, y) to `colour` when it lies inside the canvas; a later write to the same
+    /// pixel wins.
+    fn put(&mut self, x: i64, y: i64, colour: Rgb);
+
+    /// Sets the pixels `from..to` of row `y` that lie inside the canvas to `colour`, as
+    /// [`Self::put`] on each, left to right.
+    fn put_row(&mut self, from: i64, to: i64, y: i64, colour: Rgb) {
+        for x in from..to {
+            self.put(x, y, colour);
         }
-        let at = (y as usize * self.width_px + x as usize) * 3;
-        self.pixels[at..at + 3].copy_from_slice(&colour.0);
+    }
+}
+
+/// The pixel (x, y) of a `width_px` × `height_px` canvas, when it lies inside.
+fn inside(x: i64, y: i64, width_px: usize, height_px: usize) -> Option<(usize, usize)> {
+    let (x, y) = (usize::try_from(x).ok()?, usize::try_from(y).ok()?);
+    (x < width_px && y < height_px).then_some((x, y))
+}
+
+impl Canvas for RgbRaster {
+    fn width_px(&self) -> usize {
+        self.width_px
+    }
+
+    fn height_px(&self) -> usize {
+        self.height_px
+    }
+
+    fn put(&mut self, x: i64, y: i64, colour: Rgb) {
+        let Some((x, y)) = inside(x, y, self.width_px, self.height_px) else {
+            return;
+        };
+        let at = (y * self.width_px + x) * 3;
+        if let Some(pixel) = self.pixels.get_mut(at..at + 3) {
+            pixel.copy_from_slice(&colour.0);
+        }
+    }
+
+    fn put_row(&mut self, from: i64, to: i64, y: i64, colour: Rgb) {
+        let from = from.clamp(0, self.width_px as i64);
+        let to = to.clamp(from, self.width_px as i64);
+        let Some((_, y)) = inside(0, y, 1, self.height_px) else {
+            return;
+        };
+        let row = y * self.width_px;
+        let span = (row + from as usize) * 3..(row + to as usize) * 3;
+        if let Some(pixels) = self.pixels.get_mut(span) {
+            for pixel in pixels.chunks_exact_mut(3) {
+                pixel.copy_from_slice(&colour.0);
+            }
+        }
     }
 }
 
@@ -98,8 +151,8 @@ impl Style {
     }
 }
 
-/// Draws `overlay` onto `raster`: segments, then labels, then corner marks.
-pub fn draw_overlay(raster: &mut RgbRaster, overlay: &Overlay, style: &Style) {
+/// Draws `overlay` onto `raster` (or records it): segments, then labels, then corner marks.
+pub fn draw_overlay(raster: &mut impl Canvas, overlay: &Overlay, style: &Style) {
     for segment in &overlay.segments {
         draw_segment(raster, segment, style.stroke_px);
     }
@@ -114,7 +167,7 @@ pub fn draw_overlay(raster: &mut RgbRaster, overlay: &Overlay, style: &Style) {
 /// Every pixel whose centre lies within `width_px / 2` of the segment, measured
 /// perpendicular to it, between its two ends (flat caps: the stroke ends where the segment
 /// does).
-pub fn draw_segment(raster: &mut RgbRaster, segment: &Segment, width_px: f64) {
+pub fn draw_segment(raster: &mut impl Canvas, segment: &Segment, width_px: f64) {
     let [x0, y0] = segment.from_px;
     let [x1, y1] = segment.to_px;
     if ![x0, y0, x1, y1].iter().all(|c| c.is_finite()) {
@@ -128,29 +181,91 @@ pub fn draw_segment(raster: &mut RgbRaster, segment: &Segment, width_px: f64) {
         let high = (a.max(b) + half).ceil().min(size as f64 - 1.0);
         (low as i64, high as i64)
     };
-    let (x_low, x_high) = bounds(x0, x1, raster.width_px);
-    let (y_low, y_high) = bounds(y0, y1, raster.height_px);
+    let (x_low, x_high) = bounds(x0, x1, raster.width_px());
+    let (y_low, y_high) = bounds(y0, y1, raster.height_px());
     for y in y_low..=y_high {
-        for x in x_low..=x_high {
+        let (from, to) = row_span(segment, half, y as f64).map_or((x_low, x_high), |(a, b)| {
+            (
+                a.floor().max(x_low as f64) as i64,
+                b.ceil().min(x_high as f64) as i64,
+            )
+        });
+        // Runs of pixels within the stroke, each written at once.
+        let mut run: Option<i64> = None;
+        for x in from..=to {
             let (px, py) = (x as f64 - x0, y as f64 - y0);
             let t = if length_sq > 0.0 {
                 (px * dx + py * dy) / length_sq
             } else {
                 0.0
             };
-            if !(0.0..=1.0).contains(&t) {
-                continue;
+            let within = (0.0..=1.0).contains(&t) && near(px - t * dx, py - t * dy, half);
+            match (within, run) {
+                (true, None) => run = Some(x),
+                (false, Some(start)) => {
+                    raster.put_row(start, x, y, segment.colour);
+                    run = None;
+                }
+                _ => {}
             }
-            let distance = (px - t * dx).hypot(py - t * dy);
-            if distance <= half {
-                raster.put(x, y, segment.colour);
-            }
+        }
+        if let Some(start) = run {
+            raster.put_row(start, to + 1, y, segment.colour);
         }
     }
 }
 
+/// Whether the vector (dx, dy) is at most `half` long, as `dx.hypot(dy) <= half` decides it;
+/// the squared length settles all but the lengths within a hair of `half`, without hypot.
+fn near(dx: f64, dy: f64, half: f64) -> bool {
+    let (squared, limit) = (dx * dx + dy * dy, half * half);
+    if squared < limit * (1.0 - 1e-9) {
+        true
+    } else if squared > limit * (1.0 + 1e-9) {
+        false
+    } else {
+        dx.hypot(dy) <= half
+    }
+}
+
+/// The columns of row `y` worth testing for the stroke of `segment` (half width `half`),
+/// as a superset: the stroke grown by 1 px on every side, cut by the row. `None` (test the
+/// whole row) for a segment under 1 px long; an empty span (start after end) when the row
+/// misses the grown stroke.
+fn row_span(segment: &Segment, half: f64, y: f64) -> Option<(f64, f64)> {
+    let [x0, y0] = segment.from_px;
+    let (dx, dy) = (segment.to_px[0] - x0, segment.to_px[1] - y0);
+    let length = dx.hypot(dy);
+    if length < 1.0 {
+        return None;
+    }
+    let py = y - y0;
+    // Along the segment: -L ≤ px·dx + py·dy ≤ L² + L; across: |px·dy − py·dx| ≤ (half + 1)·L.
+    let along = (-length - py * dy, length * length + length - py * dy);
+    let across = (
+        -(half + 1.0) * length + py * dx,
+        (half + 1.0) * length + py * dx,
+    );
+    // Each as an interval of px, from a·px within (low, high).
+    let solve = |a: f64, (low, high): (f64, f64)| {
+        if a == 0.0 {
+            if low <= 0.0 && 0.0 <= high {
+                (f64::NEG_INFINITY, f64::INFINITY)
+            } else {
+                (f64::INFINITY, f64::NEG_INFINITY)
+            }
+        } else {
+            let (p, q) = (low / a, high / a);
+            (p.min(q), p.max(q))
+        }
+    };
+    let (a_low, a_high) = solve(dx, along);
+    let (c_low, c_high) = solve(dy, across);
+    Some((x0 + a_low.max(c_low), x0 + a_high.min(c_high)))
+}
+
 /// A hollow square centred on the pixel nearest `at_px`, so the corner itself stays visible.
-pub fn draw_corner_mark(raster: &mut RgbRaster, at_px: [f64; 2], style: &Style) {
+pub fn draw_corner_mark(raster: &mut impl Canvas, at_px: [f64; 2], style: &Style) {
     if !at_px.iter().all(|c| c.is_finite()) {
         return;
     }
@@ -177,7 +292,7 @@ fn glyph(c: char) -> [u8; 8] {
 }
 
 /// The label's text, white on a black box, `scale` px per font pixel.
-pub fn draw_label(raster: &mut RgbRaster, label: &Label, scale: i64) {
+pub fn draw_label(raster: &mut impl Canvas, label: &Label, scale: i64) {
     if !label.anchor_px.iter().all(|c| c.is_finite()) {
         return;
     }
@@ -191,9 +306,7 @@ pub fn draw_label(raster: &mut RgbRaster, label: &Label, scale: i64) {
         label.anchor_px[1].round() as i64 - box_height
     };
     for y in top..top + box_height {
-        for x in left..left + box_width {
-            raster.put(x, y, LABEL_BOX);
-        }
+        raster.put_row(left, left + box_width, y, LABEL_BOX);
     }
     let origin_x = left + LABEL_PADDING * scale;
     let origin_y = top + LABEL_PADDING * scale;
@@ -207,9 +320,7 @@ pub fn draw_label(raster: &mut RgbRaster, label: &Label, scale: i64) {
                 let x = origin_x + (k * GLYPH_PX + column) * scale;
                 let y = origin_y + row * scale;
                 for sy in 0..scale {
-                    for sx in 0..scale {
-                        raster.put(x + sx, y + sy, LABEL_TEXT);
-                    }
+                    raster.put_row(x, x + scale, y + sy, LABEL_TEXT);
                 }
             }
         }
@@ -284,6 +395,81 @@ mod tests {
             text.iter()
                 .all(|&(x, y)| (4..4 + box_width).contains(&x) && (6..30).contains(&y))
         );
+    }
+
+    /// The pixels of `segment` found by testing every pixel of the raster.
+    fn brute_force(
+        width_px: usize,
+        height_px: usize,
+        segment: &Segment,
+        width: f64,
+    ) -> Vec<(usize, usize)> {
+        let [x0, y0] = segment.from_px;
+        let (dx, dy) = (segment.to_px[0] - x0, segment.to_px[1] - y0);
+        let length_sq = dx * dx + dy * dy;
+        let mut pixels = Vec::new();
+        for y in 0..height_px {
+            for x in 0..width_px {
+                let (px, py) = (x as f64 - x0, y as f64 - y0);
+                let t = if length_sq > 0.0 {
+                    (px * dx + py * dy) / length_sq
+                } else {
+                    0.0
+                };
+                if (0.0..=1.0).contains(&t) && (px - t * dx).hypot(py - t * dy) <= width / 2.0 {
+                    pixels.push((x, y));
+                }
+            }
+        }
+        pixels
+    }
+
+    #[test]
+    fn a_stroke_is_every_pixel_within_its_half_width() {
+        // Testing only a span of each row finds what testing every pixel does.
+        let mut state = 11_u64;
+        let mut next = |range: f64| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1_u64 << 53) as f64 * range - range / 4.0
+        };
+        for k in 0..300 {
+            let from_px = [next(80.0), next(60.0)];
+            // Vertical, horizontal, on pixel centres, and anything.
+            let to_px = match k % 10 {
+                0 => [from_px[0], next(60.0)],
+                1 => [next(80.0), from_px[1]],
+                2 => [next(80.0).round(), next(60.0).round()],
+                _ => [next(80.0), next(60.0)],
+            };
+            let from_px = if k % 10 == 2 {
+                from_px.map(f64::round)
+            } else {
+                from_px
+            };
+            let segment = Segment {
+                from_px,
+                to_px,
+                colour: X_AXIS,
+            };
+            let width = [1.0, 2.0, 3.0, 4.5][k % 4];
+            let mut raster = blank(60, 45);
+            draw_segment(&mut raster, &segment, width);
+            assert_eq!(
+                coloured(&raster, X_AXIS),
+                brute_force(60, 45, &segment, width),
+                "{segment:?}"
+            );
+        }
+        let point = Segment {
+            from_px: [5.2, 5.0],
+            to_px: [5.2, 5.0],
+            colour: X_AXIS,
+        };
+        let mut raster = blank(20, 20);
+        draw_segment(&mut raster, &point, 3.0);
+        assert_eq!(coloured(&raster, X_AXIS), brute_force(20, 20, &point, 3.0));
     }
 
     #[test]

@@ -1,0 +1,316 @@
+//! The drawing, MCU by MCU: the pixel writes gathered into a tile per MCU drawn into (the
+//! last colour written on each pixel), and drawn into an MCU's coefficients. Each block that
+//! holds a drawn pixel is decoded to samples, drawn on in YCbCr and encoded again with the
+//! file's quantization; blocks without one keep their coefficients.
+
+use super::CannotSplice;
+use super::block::{Coefficients, Quantizer, Transform, ycbcr};
+use super::layout::{Grid, Layout};
+use crate::annotate::overlay::Rgb;
+use crate::annotate::raster::Canvas;
+
+/// An MCU drawn into.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Touched {
+    /// The MCU's index in scan order.
+    pub mcu: usize,
+    /// Its tile's index in [`Drawing::tiles`].
+    pub tile: usize,
+}
+
+/// The overlay recorded MCU by MCU: a [`Canvas`] that keeps, per MCU drawn into, a tile of
+/// the last colour written on each of its pixels. Writes outside the frame are dropped.
+#[derive(Debug, Clone)]
+pub struct Drawing {
+    grid: Grid,
+    /// By MCU: 0, or 1 + the index of its tile.
+    tile_of: Vec<u32>,
+    /// The MCUs drawn into, in drawing order.
+    touched: Vec<Touched>,
+    /// Per tile, an MCU's pixels row by row: 0 where nothing is drawn, else 1 + the index of
+    /// the colour in `palette`.
+    tiles: Vec<u8>,
+    /// Pixels per tile.
+    tile_len: usize,
+    /// The colours drawn.
+    palette: Vec<Rgb>,
+    /// The last colour drawn and its index, to skip the palette search.
+    last: Option<(Rgb, u8)>,
+    /// Whether more than 255 colours were drawn (the drawing cannot be spliced).
+    overflow: bool,
+}
+
+impl Drawing {
+    /// Nothing drawn yet on the frame of `grid`.
+    pub fn new(grid: Grid) -> Self {
+        Self {
+            grid,
+            tile_of: vec![0; grid.total()],
+            touched: Vec::new(),
+            tiles: Vec::new(),
+            tile_len: grid.mcu_px.0 * grid.mcu_px.1,
+            palette: Vec::new(),
+            last: None,
+            overflow: false,
+        }
+    }
+
+    /// The grid drawn on.
+    pub fn grid(&self) -> Grid {
+        self.grid
+    }
+
+    /// The MCUs drawn into, in scan order.
+    ///
+    /// # Errors
+    /// [`CannotSplice::Colours`] when more than 255 colours were drawn.
+    pub fn touched(&self) -> Result<Vec<Touched>, CannotSplice> {
+        if self.overflow {
+            return Err(CannotSplice::Colours);
+        }
+        let mut touched = self.touched.clone();
+        touched.sort_unstable_by_key(|t| t.mcu);
+        Ok(touched)
+    }
+
+    /// The drawn colours in YCbCr, by palette index.
+    pub fn colours(&self) -> Vec<[f32; 3]> {
+        self.palette.iter().copied().map(ycbcr).collect()
+    }
+
+    /// 1 + the palette index of `colour`; `None` past 255 colours.
+    fn colour_index(&mut self, colour: Rgb) -> Option<u8> {
+        if let Some((c, index)) = self.last
+            && c == colour
+        {
+            return Some(index);
+        }
+        let index = match self.palette.iter().position(|&c| c == colour) {
+            Some(i) => i,
+            None => {
+                self.palette.push(colour);
+                self.palette.len() - 1
+            }
+        };
+        let index = u8::try_from(index + 1).ok()?;
+        self.last = Some((colour, index));
+        Some(index)
+    }
+}
+
+impl Canvas for Drawing {
+    fn width_px(&self) -> usize {
+        self.grid.width
+    }
+
+    fn height_px(&self) -> usize {
+        self.grid.height
+    }
+
+    fn put(&mut self, x: i64, y: i64, colour: Rgb) {
+        self.put_row(x, x.saturating_add(1), y, colour);
+    }
+
+    fn put_row(&mut self, from: i64, to: i64, y: i64, colour: Rgb) {
+        let clip = |v: i64, size: usize| usize::try_from(v.max(0)).unwrap_or(0).min(size);
+        let (from, to) = (clip(from, self.grid.width), clip(to, self.grid.width));
+        let Ok(y) = usize::try_from(y) else {
+            return;
+        };
+        if y >= self.grid.height || from >= to {
+            return;
+        }
+        let Some(index) = self.colour_index(colour) else {
+            self.overflow = true;
+            return;
+        };
+        let mcu_w = self.grid.mcu_px.0;
+        let mut x = from;
+        while x < to {
+            // The part of the row in one MCU.
+            let end = to.min((x / mcu_w + 1) * mcu_w);
+            let (mcu, local) = self.grid.mcu_of(x, y);
+            if let Some(tile) = self.tile(mcu) {
+                let start = tile * self.tile_len + local;
+                if let Some(pixels) = self.tiles.get_mut(start..start + (end - x)) {
+                    pixels.fill(index);
+                }
+            }
+            x = end;
+        }
+    }
+}
+
+impl Drawing {
+    /// The index of the tile of `mcu`, made when it has none.
+    fn tile(&mut self, mcu: usize) -> Option<usize> {
+        let slot = self.tile_of.get_mut(mcu)?;
+        if *slot == 0 {
+            *slot = u32::try_from(self.touched.len() + 1).ok()?;
+            self.touched.push(Touched {
+                mcu,
+                tile: self.touched.len(),
+            });
+            self.tiles.resize(self.tiles.len() + self.tile_len, 0);
+        }
+        Some(*slot as usize - 1)
+    }
+}
+
+impl Drawing {
+    /// Draws `touched`'s tile into the MCU's `coefficients` (one per block of `layout`).
+    /// Writes are applied in YCbCr; a subsampled chroma sample covering several pixels takes
+    /// their mean (a box filter). A block drawn over entirely is encoded from the drawing
+    /// alone (one of one colour as its DC); a block whose samples do not change keeps its
+    /// coefficients.
+    pub fn draw(
+        &self,
+        touched: Touched,
+        colours: &[[f32; 3]],
+        layout: &Layout,
+        transform: &Transform,
+        coefficients: &mut [Coefficients],
+    ) {
+        let start = touched.tile * self.tile_len;
+        let tile = self
+            .tiles
+            .get(start..start + self.tile_len)
+            .unwrap_or_default();
+        let mcu_w = layout.grid.mcu_px.0;
+        // The drawn pixels' bounding box in the MCU, (left, top, right, bottom) inclusive.
+        let mut bounds = (usize::MAX, usize::MAX, 0, 0);
+        for (y, row) in tile.chunks_exact(mcu_w).enumerate() {
+            for (x, _) in row.iter().enumerate().filter(|(_, c)| **c != 0) {
+                bounds = (
+                    bounds.0.min(x),
+                    bounds.1.min(y),
+                    bounds.2.max(x),
+                    bounds.3.max(y),
+                );
+            }
+        }
+        // Blocks of one footprint (a grey frame's Y, Cb and Cr; 4:2:0's Cb and Cr) share
+        // their sums: the last footprint's are kept.
+        let mut cached: Option<((usize, usize, usize, usize), Sums)> = None;
+        for (&(plane, bx, by), coefficients) in layout.blocks.iter().zip(coefficients.iter_mut()) {
+            let Some(p) = layout.planes.get(plane) else {
+                continue;
+            };
+            let (sx, sy) = p.step;
+            // The block's pixels in the MCU: 8 × 8 samples of sx × sy pixels each.
+            let (left, top, width, height) = (bx * 8 * sx, by * 8 * sy, 8 * sx, 8 * sy);
+            if bounds.0 >= left + width
+                || bounds.2 < left
+                || bounds.1 >= top + height
+                || bounds.3 < top
+            {
+                continue;
+            }
+            let footprint = (left, top, sx, sy);
+            let sums = match &cached {
+                Some((f, sums)) if *f == footprint => sums,
+                _ => {
+                    &cached
+                        .insert((footprint, sums(tile, colours, mcu_w, footprint)))
+                        .1
+                }
+            };
+            let channel: [f32; 64] =
+                std::array::from_fn(|i| sums.values.get(i).map_or(0.0, |v| v[p.channel % 3]));
+            draw_block(
+                transform,
+                &p.quant,
+                coefficients,
+                &channel,
+                &sums.hits,
+                sx * sy,
+            );
+        }
+    }
+}
+
+/// The sums of the drawn values (Y, Cb, Cr) over the pixels of each sample of the block
+/// at `(left, top)` in the MCU, of `sx × sy` pixels per sample, and their numbers.
+fn sums(
+    tile: &[u8],
+    colours: &[[f32; 3]],
+    mcu_w: usize,
+    (left, top, sx, sy): (usize, usize, usize, usize),
+) -> Sums {
+    let mut sums = Sums {
+        values: [[0.0; 3]; 64],
+        hits: [0; 64],
+    };
+    let (x_shift, y_shift) = (sx / 2, sy / 2);
+    for dy in 0..8 * sy {
+        let row = (top + dy) * mcu_w + left;
+        let sample_row = (dy >> y_shift) * 8;
+        let pixels = tile.get(row..row + 8 * sx).unwrap_or_default();
+        for (dx, &colour) in pixels.iter().enumerate() {
+            let Some(ycc) = colour
+                .checked_sub(1)
+                .and_then(|c| colours.get(usize::from(c)))
+            else {
+                continue;
+            };
+            let sample = sample_row + (dx >> x_shift);
+            if let (Some(sum), Some(hit)) = (sums.values.get_mut(sample), sums.hits.get_mut(sample))
+            {
+                for (s, v) in sum.iter_mut().zip(ycc) {
+                    *s += v;
+                }
+                *hit += 1;
+            }
+        }
+    }
+    sums
+}
+
+/// Per sample of a block: the sums of the drawn values (Y, Cb, Cr) over the pixels it
+/// covers, and how many of them are drawn.
+#[derive(Debug, Clone, Copy)]
+struct Sums {
+    values: [[f32; 3]; 64],
+    hits: [u8; 64],
+}
+
+/// Draws into one block the `sums` of the drawn values over the pixels of each sample and
+/// their number `hits`, of `covered` pixels per sample.
+fn draw_block(
+    transform: &Transform,
+    quant: &Quantizer,
+    coefficients: &mut Coefficients,
+    sums: &[f32; 64],
+    hits: &[u8; 64],
+    covered: usize,
+) {
+    // covered is 1, 2 or 4.
+    let covered = u8::try_from(covered).unwrap_or(1);
+    let scale = f32::from(covered);
+    if hits.iter().all(|&h| h == 0) {
+        return;
+    }
+    if hits.iter().all(|&h| h == covered) {
+        // Every sample drawn over: the block's old content does not matter.
+        let samples = sums.map(|sum| sum / scale);
+        *coefficients = if samples.iter().all(|&v| v == samples[0]) {
+            transform.flat(samples[0], quant)
+        } else {
+            transform.coefficients(&samples, quant)
+        };
+        return;
+    }
+    let mut samples = transform.samples(coefficients, quant);
+    let mut changed = false;
+    for ((sample, &sum), &hit) in samples.iter_mut().zip(sums).zip(hits) {
+        if hit == 0 {
+            continue;
+        }
+        let value = (sum + f32::from(covered - hit) * *sample) / scale;
+        changed |= (value - *sample).abs() > 1e-3;
+        *sample = value;
+    }
+    if changed {
+        *coefficients = transform.coefficients(&samples, quant);
+    }
+}
