@@ -6,11 +6,12 @@
 //!    symbol is kept, however many (a shelf shows dozens), and every finder-pattern triple
 //!    that did not read becomes a [`Region`].
 //!
-//!    When step 1 found nothing at all (no symbol, no triple), `balanced` and `thorough` read
-//!    an unsharp-masked copy of frames up to [`UPSCALE_MAX_SIDE_PX`] once more
-//!    ([`find_sharpened`]): small codes under blur lose their finder patterns' light ring
-//!    to the binariser; small triples found only there get one double-scale sharpened read
-//!    of their crop.
+//!    When step 1 found nothing at all (no symbol, no triple), or when steps 1 and 2 read a
+//!    code of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module, `balanced` and
+//!    `thorough` read an unsharp-masked copy of frames up to [`UPSCALE_MAX_SIDE_PX`] once
+//!    more ([`find_sharpened`], after step 2): small codes under blur lose their finder
+//!    patterns' light ring to the binariser; small triples found only there get one
+//!    double-scale sharpened read of their crop.
 //! 2. **Look closer** (`balanced`, `thorough`): only where a region is, never on the whole
 //!    frame: a crop around it goes through the other binariser, rqrr, and the image
 //!    variants of [`crate::filters`] (global histogram, denoised, contrast-stretched,
@@ -157,16 +158,18 @@ fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &mut PassLog)
     }
 }
 
-/// Step 1½ (`balanced`, `thorough`), when step 1 found nothing at all, neither a symbol nor
-/// a finder-pattern triple, on frames of at most [`UPSCALE_MAX_SIDE_PX`]: rxing on an
-/// unsharp-masked copy ([`SHARPEN_SIGMA_PX`], [`SHARPEN_AMOUNT`]). Small codes under blur
-/// (about 2-3 px per module, blur σ ≈ 1 px) lose the light ring of their finder patterns to
-/// the binariser, so step 1 sees no triple and step 2 no region; sharpening gives the ring
-/// back. The triples it finds but cannot read are not made regions for step 2 (on textured
-/// frames without a code the sharpened noise yields spurious triples, whose crops would take
-/// step 2's passes up to the deadline): the small ones among them get one double-scale
-/// sharpened read of their crop, at most [`SHARPENED_REGIONS_MAX`] of them. A frame with no
-/// finder-like structure pays the sharpened read once.
+/// Step 1½ (`balanced`, `thorough`; run after step 2), on frames of at most
+/// [`UPSCALE_MAX_SIDE_PX`], when step 1 found nothing at all (neither a symbol nor a
+/// finder-pattern triple) or when a code of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`]
+/// px per module was read ([`reads_small_codes`]): rxing on an unsharp-masked copy
+/// ([`SHARPEN_SIGMA_PX`], [`SHARPEN_AMOUNT`]). Small codes under blur (about 2-3 px per
+/// module, blur σ ≈ 1 px) lose the light ring of their finder patterns to the binariser, so
+/// step 1 sees no triple and step 2 no region; sharpening gives the ring back. The triples
+/// it finds but cannot read are not made regions for step 2 (on textured frames without a
+/// code the sharpened noise yields spurious triples, whose crops would take step 2's passes
+/// up to the deadline): the small ones among them get one double-scale sharpened read of
+/// their crop, at most [`SHARPENED_REGIONS_MAX`] of them. A frame with no finder-like
+/// structure pays the sharpened read once.
 fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
     let image = finds.image;
     if image.width().max(image.height()) > UPSCALE_MAX_SIDE_PX || !log.may_continue() {
@@ -211,6 +214,40 @@ fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
         finds.add(read);
     }
 }
+
+/// A frame in which a code of at most this many px per module was read (its shortest side
+/// over its module count) also gets the sharpened read of [`find_sharpened`]. That read is
+/// for codes of 2-3 px per module, whose finder rings blur away; a code of the same printed
+/// size twice as far away as one read at 6 px per module is at 3, so a frame that shows
+/// codes at this scale is one where such codes are likely, next to the ones read (a shelf
+/// or a wall of labels at several distances). Frames of larger codes only do not pay for
+/// it, and frames with no code pay nothing more than before. Measured 2026-11-24: on the
+/// rendered multi-code frames of issue 12 (2-6 codes, 1280 × 720) reading every frame's
+/// sharpened copy doubled `balanced`'s time and read 14 more codes (10 of ≥ 40 px); this
+/// trigger reads 13 of them (all 10), while on the BoofCV development photos (one or a few
+/// codes, mostly at more px per module) 34 more of 272 photos pay the read (68 with those
+/// where nothing was found), where reading every frame ≤ 1920 px meant 150.
+pub const SHARPENED_TRIGGER_MAX_PX_PER_MODULE: f64 = 6.0;
+
+/// Whether `found` holds a decoded code of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`]
+/// px per module. A code whose module count is unknown counts as a version 1 code (21
+/// modules, the fewest, so the most px per module: the trigger errs towards not firing).
+fn reads_small_codes(found: &[Candidate]) -> bool {
+    found.iter().filter(|c| c.payload.is_some()).any(|c| {
+        let p = c.corners_px;
+        let shortest = (0..4)
+            .map(|i| {
+                let (a, b) = (p[i], p[(i + 1) % 4]);
+                (a.u() - b.u()).hypot(a.v() - b.v())
+            })
+            .fold(f64::INFINITY, f64::min);
+        let modules = c.module_count.unwrap_or(MIN_MODULE_COUNT) as f64;
+        shortest <= SHARPENED_TRIGGER_MAX_PX_PER_MODULE * modules
+    })
+}
+
+/// Modules per side of the smallest QR code (version 1).
+const MIN_MODULE_COUNT: usize = 21;
 
 /// Finder-pattern triples found only on the sharpened copy ([`find_sharpened`]) get one
 /// more look, a double-scale sharpened read of their crop, when their box is at most this
@@ -364,10 +401,11 @@ pub(crate) fn find_candidates(
     };
     find(&mut finds, effort, best, log);
     if effort != Effort::Fast {
-        if finds.found.is_empty() && finds.regions.is_empty() {
+        let nothing = finds.found.is_empty() && finds.regions.is_empty();
+        regions(&mut finds, best, log);
+        if nothing || reads_small_codes(&finds.found) {
             find_sharpened(&mut finds, log);
         }
-        regions(&mut finds, best, log);
     }
     let small_frame = image.pixels().len() <= WHOLE_FRAME_MAX_PIXELS && !any_decoded(&finds.found);
     if effort == Effort::Thorough || (effort == Effort::Balanced && small_frame) {
