@@ -100,8 +100,10 @@ async fn a_panicking_job_is_a_500_and_the_worker_lives_on() {
 async fn a_request_that_gives_up_while_its_job_runs_cancels_the_detection() {
     let queue = EstimationQueue::new(1, 0, QueueMetrics::default()).expect("threads");
     let (seen, saw) = mpsc::channel::<Duration>();
-    let started = std::time::Instant::now();
+    let (running, has_run) = tokio::sync::oneshot::channel::<std::time::Instant>();
     let job = move || {
+        let started = std::time::Instant::now();
+        let _ = running.send(started);
         // Stands for detection: a pass, then the check before the next one.
         while !crate::detect::cancel::cancelled() {
             std::thread::sleep(Duration::from_millis(1));
@@ -109,12 +111,23 @@ async fn a_request_that_gives_up_while_its_job_runs_cancels_the_detection() {
         }
         let _ = seen.send(started.elapsed());
     };
-    let gave_up = tokio::time::timeout(Duration::from_millis(50), queue.run(job)).await;
+    // Boxed, so that the timeout below takes it and drops it (the cancellation) when it
+    // gives up.
+    let mut run = Box::pin(queue.run(job));
+    // Give up only once the job runs (on a loaded machine a worker may take a while to
+    // pick it up, and a job given up before it starts is dropped unrun, another case).
+    let started = tokio::select! {
+        _ = &mut run => panic!("the job ended by itself"),
+        started = has_run => started.expect("the job started"),
+    };
+    let gave_up = tokio::time::timeout(Duration::from_millis(50), run).await;
     assert!(gave_up.is_err(), "the job runs until cancelled");
+    let given_up_after = started.elapsed();
     let after = saw
         .recv_timeout(PATIENCE)
         .expect("the job saw the cancellation");
     assert!(after >= Duration::from_millis(50), "{after:?}");
+    assert!(after <= given_up_after + PATIENCE, "{after:?}");
     until("the worker is free again", &queue, (0, 0)).await;
     assert_eq!(queue.run(|| 3).await.expect("the worker takes new work"), 3);
 }
