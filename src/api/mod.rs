@@ -154,6 +154,28 @@ mod tests {
     }
 
     #[test]
+    fn an_integral_float_is_an_integer_as_in_json_schema() {
+        let parsed = |v: Value| {
+            parse_json::<request::CornersRequest>(
+                &serde_json::to_vec(&with("/solver", v)).expect("json"),
+            )
+            .map(|r| r.solver.max_iterations)
+        };
+        assert_eq!(parsed(json!({"max_iterations": 7.0})), Ok(7));
+        assert_eq!(parsed(json!({"max_iterations": 7})), Ok(7));
+        let trace = with(
+            "/solver",
+            json!({"method": "paper", "max_iterations": 3.0, "trace": true}),
+        );
+        let response = run(&trace).expect("accepted");
+        assert!(
+            response.diagnostics.iterations <= 3,
+            "{:?}",
+            response.diagnostics
+        );
+    }
+
+    #[test]
     fn every_validation_error_has_its_code_and_field() {
         let square_px = json!([
             [100.0, 100.0],
@@ -328,6 +350,24 @@ mod tests {
                 "negative iterations",
                 with("/solver", json!({"max_iterations": -5})),
                 ErrorCode::InvalidType,
+                "/solver/max_iterations",
+            ),
+            (
+                "fractional iterations",
+                with("/solver", json!({"max_iterations": 2.5})),
+                ErrorCode::InvalidType,
+                "/solver/max_iterations",
+            ),
+            (
+                "iterations past u64",
+                with("/solver", json!({"max_iterations": 1e20})),
+                ErrorCode::InvalidType,
+                "/solver/max_iterations",
+            ),
+            (
+                "zero iterations written as a float",
+                with("/solver", json!({"max_iterations": 0.0})),
+                ErrorCode::SolverParameterOutOfRange,
                 "/solver/max_iterations",
             ),
             (

@@ -8,15 +8,19 @@
 //!   image-plane form with `corners_mm` only;
 //! - exclusive minima and the ranges of every number the server checks (focal lengths,
 //!   pixel pitch, marker size, the solver's parameters, deadlines, the prior);
-//! - quaternions of four numbers; non-empty image bodies and parts; a multipart form of
-//!   exactly the parts `image` and `request`.
+//! - quaternions of four numbers, not all zero; the distortion coefficients of the lens
+//!   model named (a `plumb_bob` lens has no k4-k6); non-empty image bodies and parts; a
+//!   multipart form of exactly the parts `image` and `request`.
 //!
 //! What stays outside any schema, the *residue*: a quadrilateral that is not convex or whose
 //! corners coincide, a pose behind the camera, magnitudes beyond double precision
 //! (`numerically_degenerate`), bytes that are not a JPEG or PNG, a camera id or payload the
 //! loaded site does not know, a marker size left out without a site default, and the camera
 //! of the raw image form, whose query parameters OpenAPI can only describe one by one (its
-//! forms are a rule across parameters). `docs/service.md`, Fuzzing, gives the figures.
+//! forms are a rule across parameters, and so is the lens model's set of coefficients),
+//! query parameters sent with a multipart body (OpenAPI cannot tie parameters to a media
+//! type), and the `zxing-cpp` detector on a server built without it (`detector_unavailable`:
+//! the document lists the detectors of every build). `docs/service.md`, Fuzzing, gives the figures.
 //!
 //! The ranges come from the constants the server validates with, never restated.
 
@@ -85,9 +89,35 @@ fn four_points() -> Value {
         "items": {"type": "array", "minItems": 2, "maxItems": 2, "items": {"type": "number"}}})
 }
 
-/// A quaternion (w, x, y, z), or `null`.
+/// A quaternion (w, x, y, z), not all zero (it has no rotation), or `null`.
 fn quaternion() -> Value {
-    json!({"type": ["array", "null"], "minItems": 4, "maxItems": 4, "items": {"type": "number"}})
+    json!({"type": ["array", "null"], "minItems": 4, "maxItems": 4, "items": {"type": "number"},
+        "not": {"type": "array", "items": {"const": 0}}})
+}
+
+/// The lens models and the coefficients each does not have (zero or absent): one schema
+/// per model, `plumb_bob` also when `model` is absent or `null` (the server's default).
+fn distortion_models() -> Value {
+    let zero = json!({"const": 0});
+    let without = |names: &[&str]| -> serde_json::Map<String, Value> {
+        names
+            .iter()
+            .map(|n| ((*n).to_owned(), zero.clone()))
+            .collect()
+    };
+    let mut plumb_bob = without(&["k4", "k5", "k6"]);
+    plumb_bob.insert(
+        "model".to_owned(),
+        json!({"anyOf": [{"type": "null"}, {"const": "plumb_bob"}]}),
+    );
+    let mut equidistant = without(&["p1", "p2", "k5", "k6"]);
+    equidistant.insert("model".to_owned(), json!({"const": "equidistant"}));
+    json!({"oneOf": [
+        {"title": "plumb_bob", "properties": plumb_bob},
+        {"title": "rational_polynomial", "required": ["model"],
+            "properties": {"model": {"const": "rational_polynomial"}}},
+        {"title": "equidistant", "required": ["model"], "properties": equidistant}
+    ]})
 }
 
 /// Merges `extra`'s keys into the object at `pointer` (keeping its description and the
@@ -145,6 +175,7 @@ fn tighten_requests(doc: &mut Value) {
         .map(|(name, schema)| with_title(schema, name))
         .collect();
     merge(doc, &schema("CameraDto"), &json!({"oneOf": forms}));
+    merge(doc, &schema("DistortionDto"), &distortion_models());
     for field in ["fx_px", "fy_px", "focal_length_mm", "pixel_size_um"] {
         merge(
             doc,
