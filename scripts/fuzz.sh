@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # cargo fuzz targets of qrpose (fuzz/, issue 16), each for SECONDS (default 600):
 #
-#   scripts/fuzz.sh [SECONDS] [TARGET...]      # targets: json_request decode detect estimators
+#   scripts/fuzz.sh [SECONDS] [TARGET...]      # targets: json_request decode detect estimators splice
 #
 # Installs cargo-fuzz from crates.io when missing. The machine's toolchain is stable, so the
 # build runs with RUSTC_BOOTSTRAP=1 (cargo fuzz passes -Z flags) and without a sanitizer
@@ -14,7 +14,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-600}
 shift || true
 targets=("$@")
-[[ ${#targets[@]} -gt 0 ]] || targets=(json_request decode detect estimators)
+[[ ${#targets[@]} -gt 0 ]] || targets=(json_request decode detect estimators splice)
 command -v cargo-fuzz >/dev/null 2>&1 || cargo install cargo-fuzz --locked
 for target in "${targets[@]}"; do
   mkdir -p "fuzz/corpus/$target"

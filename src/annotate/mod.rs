@@ -64,19 +64,22 @@ pub fn annotated_image(
     camera: &Camera,
     format: OutputFormat,
 ) -> Result<Vec<u8>, CodecError> {
-    annotated_with(bytes, format, |label_height_px| {
+    let size_px = (response.image.width_px, response.image.height_px);
+    annotated_with(bytes, format, size_px, |label_height_px| {
         overlay::overlay_of(response, camera, label_height_px)
     })
 }
 
-/// [`annotated_image`] for the overlay `overlay_for(label height, px)`.
+/// [`annotated_image`] for the overlay `overlay_for(label height, px)` on a photo that
+/// decoded to `size_px` (width, height).
 pub(crate) fn annotated_with(
     bytes: &[u8],
     format: OutputFormat,
+    size_px: (usize, usize),
     overlay_for: impl Fn(f64) -> Overlay,
 ) -> Result<Vec<u8>, CodecError> {
     if format == OutputFormat::Jpeg && sniff_format(bytes) == Some(ImageFormat::Jpeg) {
-        match spliced(bytes, &overlay_for) {
+        match spliced(bytes, size_px, &overlay_for) {
             Ok(jpeg) => return Ok(jpeg),
             Err(reason) => {
                 tracing::debug!(%reason, "annotated JPEG: re-encoding the whole frame");
@@ -86,12 +89,18 @@ pub(crate) fn annotated_with(
     redrawn(bytes, format, &overlay_for)
 }
 
-/// The JPEG `bytes` with the overlay spliced in.
+/// The JPEG `bytes` with the overlay spliced in. Only when the frame header declares the
+/// size the photo decoded to (`size_px`, within the service's pixel limit): the overlay's
+/// coordinates are of that image, and the canvas is sized from the header.
 fn spliced(
     bytes: &[u8],
+    size_px: (usize, usize),
     overlay_for: &impl Fn(f64) -> Overlay,
 ) -> Result<Vec<u8>, jpeg_splice::CannotSplice> {
     let jpeg = jpeg_splice::Jpeg::parse(bytes)?;
+    if (jpeg.width_px(), jpeg.height_px()) != size_px {
+        return Err(jpeg_splice::CannotSplice::SizeMismatch);
+    }
     let style = Style::for_image(jpeg.width_px(), jpeg.height_px());
     let mut drawing = jpeg.canvas();
     raster::draw_overlay(&mut drawing, &overlay_for(style.label_height_px()), &style);

@@ -379,8 +379,9 @@ impl State {
     }
 }
 
-/// Checks what follows the scan's data at `at` up to EOI: markers and segments (COM, APPn,
-/// tables), but no second scan and no DNL. Anything after EOI is not looked at.
+/// Checks what follows the scan's data at `at` up to EOI: markers and whole segments (COM,
+/// APPn, tables), but no second scan, no DNL and no segment cut off by the end of the file.
+/// Anything after EOI is not looked at.
 ///
 /// # Errors
 /// [`CannotSplice::MultipleScans`], [`CannotSplice::Dnl`], or
@@ -404,6 +405,14 @@ pub fn check_trailer(file: &[u8], mut at: usize) -> Result<(), CannotSplice> {
             return Err(CannotSplice::Malformed("segment length"));
         }
         at = segment_at + length;
+        if at > file.len() {
+            // zune-jpeg, the service's decoder, fails on such a file when the scan's last
+            // code ends within a byte or two of the marker (as it may once re-encoded),
+            // though it read the client's file, whose data ended earlier.
+            return Err(CannotSplice::Malformed(
+                "a segment after the scan runs past the end",
+            ));
+        }
     }
     Ok(())
 }

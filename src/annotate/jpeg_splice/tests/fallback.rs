@@ -9,7 +9,8 @@ use jpeg_encoder::{ColorType, Encoder};
 fn check_fallback(jpeg: &[u8], reason: CannotSplice) {
     let refused = Jpeg::parse(jpeg).and_then(|j| j.splice(&drawing(&j, &writes())));
     assert_eq!(refused.err(), Some(reason));
-    let annotated = annotated_with(jpeg, OutputFormat::Jpeg, |_| overlay()).expect("annotated");
+    let annotated =
+        annotated_with(jpeg, OutputFormat::Jpeg, SIZE_PX, |_| overlay()).expect("annotated");
     let whole = redrawn(jpeg, OutputFormat::Jpeg, &|_| overlay()).expect("drawn");
     assert_eq!(annotated, whole);
     let [zune, image] = decode_both(&annotated);
@@ -215,4 +216,38 @@ fn the_chrominance_tables_are_complete() {
         assert!((1..=10).all(|size| ac.code(run << 4 | size).is_ok()));
     }
     assert!(ac.code(0x00).is_ok() && ac.code(0xF0).is_ok());
+}
+
+/// Found by `cargo fuzz` (fuzz/fuzz_targets/splice.rs; the file is kept as a seed): a 4:2:0
+/// JPEG whose scan is followed by fill bytes and an APP1 segment longer than the rest of
+/// the file. zune-jpeg decodes it, but once spliced (the overlay's blocks re-encoded, the
+/// scan's last code ending a bit before that marker) it did not, and the service would have
+/// answered with a JPEG it cannot read. Such a trailer is refused, and the annotated image
+/// is the whole-frame path's.
+#[test]
+fn a_segment_running_past_the_end_after_the_scan_falls_back() {
+    let jpeg: &[u8] =
+        include_bytes!("../../../../fuzz/seeds/splice/crash_truncated_app1_after_scan.jpg");
+    let refused = Jpeg::parse(jpeg).and_then(|j| {
+        j.splice(&j.canvas()).map(|_| ()).and_then(|()| {
+            let mut drawing = j.canvas();
+            drawing.put(0, 0, OUTLINE);
+            j.splice(&drawing).map(|_| ())
+        })
+    });
+    assert_eq!(
+        refused,
+        Err(CannotSplice::Malformed(
+            "a segment after the scan runs past the end"
+        ))
+    );
+    let size_px = (80, 48);
+    let annotated =
+        annotated_with(jpeg, OutputFormat::Jpeg, size_px, |_| overlay()).expect("annotated");
+    assert_eq!(
+        annotated,
+        redrawn(jpeg, OutputFormat::Jpeg, &|_| overlay()).expect("drawn")
+    );
+    let decoded = codec::decode_rgb(&annotated).expect("the annotated image decodes");
+    assert_eq!((decoded.width_px(), decoded.height_px()), size_px);
 }

@@ -72,6 +72,8 @@ impl Canvas for PixelWrites {
 
 const WIDTH: u16 = 203;
 const HEIGHT: u16 = 141;
+/// The test photos' size as the detection's decode reports it, (width, height) px.
+const SIZE_PX: (usize, usize) = (WIDTH as usize, HEIGHT as usize);
 
 /// A photo-like RGB frame: smooth shading, edges and a little deterministic noise.
 fn photo(width: u16, height: u16) -> Vec<u8> {
@@ -472,15 +474,29 @@ fn no_writes_give_the_file_itself() {
 #[test]
 fn annotating_a_jpeg_splices_it() {
     let jpeg = encode(COLOUR_420, |_| {});
-    let annotated = annotated_with(&jpeg, OutputFormat::Jpeg, |_| overlay()).expect("annotated");
+    let annotated =
+        annotated_with(&jpeg, OutputFormat::Jpeg, SIZE_PX, |_| overlay()).expect("annotated");
     let spliced = Jpeg::parse(&jpeg)
         .and_then(|j| j.splice(&drawing(&j, &writes())))
         .expect("spliced");
     assert_eq!(annotated, spliced.bytes);
     // PNG output stays the whole-frame path.
-    let png = annotated_with(&jpeg, OutputFormat::Png, |_| overlay()).expect("annotated");
+    let png = annotated_with(&jpeg, OutputFormat::Png, SIZE_PX, |_| overlay()).expect("annotated");
     assert_eq!(
         png,
         redrawn(&jpeg, OutputFormat::Png, &|_| overlay()).expect("drawn")
     );
+}
+
+#[test]
+fn a_jpeg_declaring_another_size_than_the_decoded_one_is_redrawn_whole() {
+    // The overlay's coordinates are of the decoded image, and the splice's canvas is sized
+    // from the frame header: they must agree, or the whole frame is drawn instead.
+    let jpeg = encode(COLOUR_420, |_| {});
+    for size_px in [(SIZE_PX.0 + 1, SIZE_PX.1), (SIZE_PX.0, SIZE_PX.1 - 8)] {
+        let annotated =
+            annotated_with(&jpeg, OutputFormat::Jpeg, size_px, |_| overlay()).expect("annotated");
+        let whole = redrawn(&jpeg, OutputFormat::Jpeg, &|_| overlay()).expect("drawn");
+        assert_eq!(annotated, whole, "{size_px:?}");
+    }
 }
