@@ -379,13 +379,19 @@ impl State {
     }
 }
 
-/// Checks what follows the scan's data at `at` up to EOI: markers and whole segments (COM,
-/// APPn, tables), but no second scan, no DNL and no segment cut off by the end of the file.
-/// Anything after EOI is not looked at.
+/// Checks what follows the scan's data at `at` up to EOI: whole COM and APPn segments
+/// only, and no segment cut off by the end of the file. Anything after EOI is not looked
+/// at.
+///
+/// Tables (DHT, DQT, DRI, DAC) after the only scan serve no scan, and decoders of a
+/// one-scan file never read them; a grey frame's spliced version has three scans, after
+/// which zune-jpeg does read them, and refuses a malformed table the client's file carried
+/// harmlessly (found by `cargo fuzz`). An Adobe APP14 there would change how the
+/// three-component version's colours are read. Both fall back to the whole-frame path.
 ///
 /// # Errors
 /// [`CannotSplice::MultipleScans`], [`CannotSplice::Dnl`], or
-/// [`CannotSplice::Malformed`] for bytes that are no marker segment.
+/// [`CannotSplice::Malformed`] for other markers and for bytes that are no marker segment.
 pub fn check_trailer(file: &[u8], mut at: usize) -> Result<(), CannotSplice> {
     while at < file.len() {
         let (code, segment_at) = next_marker(file, at)?;
@@ -393,8 +399,12 @@ pub fn check_trailer(file: &[u8], mut at: usize) -> Result<(), CannotSplice> {
             0xD9 => return Ok(()),
             0xDA => return Err(CannotSplice::MultipleScans),
             0xDC => return Err(CannotSplice::Dnl),
-            0x01 | 0xD0..=0xD8 => return Err(CannotSplice::Malformed("a marker after the scan")),
-            _ => {}
+            0xC4 | 0xCC | 0xDB | 0xDD => {
+                return Err(CannotSplice::Malformed("tables after the scan"));
+            }
+            0xEE => return Err(CannotSplice::Malformed("an Adobe marker after the scan")),
+            0xE0..=0xEF | 0xFE => {}
+            _ => return Err(CannotSplice::Malformed("a marker after the scan")),
         }
         let length = bytes(file, segment_at, 2)?;
         let length = usize::from(u16::from_be_bytes([

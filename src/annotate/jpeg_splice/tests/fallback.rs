@@ -251,3 +251,37 @@ fn a_segment_running_past_the_end_after_the_scan_falls_back() {
     let decoded = codec::decode_rgb(&annotated).expect("the annotated image decodes");
     assert_eq!((decoded.width_px(), decoded.height_px()), size_px);
 }
+
+/// Found by `cargo fuzz` (kept as a seed): a grey JPEG followed, after its scan, by a DHT
+/// segment whose counts exceed its length. zune-jpeg stops after a one-scan file's scan and
+/// never reads it; the spliced version of a grey frame has three scans, after which it does
+/// and refuses the file. Tables after the scan are refused: the whole-frame path draws it.
+#[test]
+fn tables_after_the_scan_fall_back() {
+    let jpeg: &[u8] =
+        include_bytes!("../../../../fuzz/seeds/splice/crash_grey_bad_dht_after_scan.jpg");
+    let mut refused = Jpeg::parse(jpeg).and_then(|j| {
+        let mut drawing = j.canvas();
+        drawing.put(0, 0, OUTLINE);
+        j.splice(&drawing)
+    });
+    assert_eq!(
+        refused.as_ref().err(),
+        Some(&CannotSplice::Malformed("tables after the scan"))
+    );
+    let size_px = (11, 64);
+    let annotated =
+        annotated_with(jpeg, OutputFormat::Jpeg, size_px, |_| overlay()).expect("annotated");
+    let decoded = codec::decode_rgb(&annotated).expect("the annotated image decodes");
+    assert_eq!((decoded.width_px(), decoded.height_px()), size_px);
+    // A table after the scan of an otherwise clean file is refused the same way.
+    let clean = encode(COLOUR_420, |_| {});
+    let eoi = clean.len() - 2;
+    let dqt: Vec<u8> = [&[0xFF, 0xDB, 0, 67, 0][..], &[1; 64]].concat();
+    let with_table = [&clean[..eoi], &dqt, &clean[eoi..]].concat();
+    refused = Jpeg::parse(&with_table).and_then(|j| j.splice(&drawing(&j, &writes())));
+    assert_eq!(
+        refused.err(),
+        Some(CannotSplice::Malformed("tables after the scan"))
+    );
+}
