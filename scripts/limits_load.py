@@ -64,15 +64,15 @@ def cmd_compose(service, path, env_out):
     mem = compose_bytes(limits["memory"])
     cpus = float(limits["cpus"])
     # docs/deploy.md, Memory: idle (10 MiB) + 3 B x max inflight pixels + max inflight body
-    # bytes + 32 MiB. The defaults when unset: workers x 50 MP, (workers + 2) x body limit.
+    # bytes + 32 MiB + 32 MiB under sustained load. The defaults when unset: workers x 50 MP, (workers + 2) x body limit.
     workers = int(env.get("QRPOSE_MAX_CONCURRENT_ESTIMATIONS", os.cpu_count()))
     body_limit = int(env.get("QRPOSE_BODY_LIMIT_BYTES", 25165824))
     max_image = int(env.get("QRPOSE_MAX_IMAGE_PIXELS", 50_000_000))
     pixels = int(env.get("QRPOSE_MAX_INFLIGHT_PIXELS", workers * max_image))
     bodies = int(env.get("QRPOSE_MAX_INFLIGHT_BODY_BYTES", (workers + 2) * body_limit))
-    # As the docs write it: megapixels times 3 taken as MiB (10 + 3 x 100 + 96 + 32 = 438),
+    # As the docs write it: megapixels times 3 taken as MiB (10 + 3 x 100 + 96 + 32 + 32 = 470),
     # 4.6 % above the exact 3 B x pixels.
-    bound_mib = 10 + 3 * pixels / 1e6 + bodies / MIB + 32
+    bound_mib = 10 + 3 * pixels / 1e6 + bodies / MIB + 32 + 32
     out = {
         "LIMIT_MEMORY_BYTES": mem,
         "LIMIT_MEMORY_TEXT": limits["memory"],
