@@ -11,6 +11,7 @@ pub mod corners;
 pub mod finite;
 pub mod frames;
 pub mod image;
+mod integral;
 pub mod problem;
 pub mod refusal;
 pub mod request;
@@ -151,28 +152,6 @@ mod tests {
         let r = run(&base()).expect("valid request");
         assert_eq!(r.diagnostics.method, request::MethodDto::Reprojection);
         assert!(r.diagnostics.converged);
-    }
-
-    #[test]
-    fn an_integral_float_is_an_integer_as_in_json_schema() {
-        let parsed = |v: Value| {
-            parse_json::<request::CornersRequest>(
-                &serde_json::to_vec(&with("/solver", v)).expect("json"),
-            )
-            .map(|r| r.solver.max_iterations)
-        };
-        assert_eq!(parsed(json!({"max_iterations": 7.0})), Ok(7));
-        assert_eq!(parsed(json!({"max_iterations": 7})), Ok(7));
-        let trace = with(
-            "/solver",
-            json!({"method": "paper", "max_iterations": 3.0, "trace": true}),
-        );
-        let response = run(&trace).expect("accepted");
-        assert!(
-            response.diagnostics.iterations <= 3,
-            "{:?}",
-            response.diagnostics
-        );
     }
 
     #[test]

@@ -103,51 +103,6 @@ fn default_corner_sigma_px() -> f64 {
     DEFAULT_CORNER_SIGMA_PX
 }
 
-/// An integer field as JSON Schema (and so the OpenAPI document) counts integers: `30` and
-/// `30.0` alike, a number with no fractional part being an integer there. Anything else
-/// that is not a non-negative integer below 2⁶⁴ is refused as serde refuses it for `u64`
-/// (`invalid_type`); the range of the field is checked by its validation.
-mod integral {
-    use serde::Deserializer;
-    use serde::de::{Error, Unexpected, Visitor};
-    use std::fmt;
-
-    /// 2⁶⁴, the first float above `u64::MAX`.
-    const U64_END: f64 = 18_446_744_073_709_551_616.0;
-
-    struct Integral;
-
-    impl Visitor<'_> for Integral {
-        type Value = u64;
-
-        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-            f.write_str("u64")
-        }
-
-        fn visit_u64<E: Error>(self, v: u64) -> Result<u64, E> {
-            Ok(v)
-        }
-
-        fn visit_i64<E: Error>(self, v: i64) -> Result<u64, E> {
-            u64::try_from(v).map_err(|_| E::invalid_value(Unexpected::Signed(v), &self))
-        }
-
-        // In range and integral, checked before the cast: it is exact.
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-        fn visit_f64<E: Error>(self, v: f64) -> Result<u64, E> {
-            if v.fract() == 0.0 && (0.0..U64_END).contains(&v) {
-                Ok(v as u64)
-            } else {
-                Err(E::invalid_type(Unexpected::Float(v), &self))
-            }
-        }
-    }
-
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
-        d.deserialize_u64(Integral)
-    }
-}
-
 /// Solver choice and parameters. Every field is optional.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -170,7 +125,7 @@ pub struct SolverDto {
     /// Iteration limit of every method, 1 to 10000. Default 30.
     #[serde(
         default = "default_max_iterations",
-        deserialize_with = "integral::deserialize"
+        deserialize_with = "super::integral::deserialize"
     )]
     #[schema(example = 30, minimum = 1, maximum = 10000)]
     pub max_iterations: u64,

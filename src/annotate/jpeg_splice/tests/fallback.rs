@@ -285,3 +285,16 @@ fn tables_after_the_scan_fall_back() {
         Some(CannotSplice::Malformed("tables after the scan"))
     );
 }
+
+#[test]
+fn a_jpeg_declaring_another_size_than_the_decoded_one_is_redrawn_whole() {
+    // The overlay's coordinates are of the decoded image, and the splice's canvas is sized
+    // from the frame header: they must agree, or the whole frame is drawn instead.
+    let jpeg = encode(COLOUR_420, |_| {});
+    for size_px in [(SIZE_PX.0 + 1, SIZE_PX.1), (SIZE_PX.0, SIZE_PX.1 - 8)] {
+        let annotated =
+            annotated_with(&jpeg, OutputFormat::Jpeg, size_px, |_| overlay()).expect("annotated");
+        let whole = redrawn(&jpeg, OutputFormat::Jpeg, &|_| overlay()).expect("drawn");
+        assert_eq!(annotated, whole, "{size_px:?}");
+    }
+}
