@@ -389,14 +389,18 @@ impl State {
 /// harmlessly (found by `cargo fuzz`). An Adobe APP14 there would change how the
 /// three-component version's colours are read. Both fall back to the whole-frame path.
 ///
+/// Whether an EOI ends it: a file may just stop after its scan, which zune-jpeg accepts of
+/// a one-scan file but not of the three scans a grey frame's spliced version has (found by
+/// `cargo fuzz`), so the splice then adds one.
+///
 /// # Errors
 /// [`CannotSplice::MultipleScans`], [`CannotSplice::Dnl`], or
 /// [`CannotSplice::Malformed`] for other markers and for bytes that are no marker segment.
-pub fn check_trailer(file: &[u8], mut at: usize) -> Result<(), CannotSplice> {
+pub fn check_trailer(file: &[u8], mut at: usize) -> Result<bool, CannotSplice> {
     while at < file.len() {
         let (code, segment_at) = next_marker(file, at)?;
         match code {
-            0xD9 => return Ok(()),
+            0xD9 => return Ok(true),
             0xDA => return Err(CannotSplice::MultipleScans),
             0xDC => return Err(CannotSplice::Dnl),
             0xC4 | 0xCC | 0xDB | 0xDD => {
@@ -424,5 +428,5 @@ pub fn check_trailer(file: &[u8], mut at: usize) -> Result<(), CannotSplice> {
             ));
         }
     }
-    Ok(())
+    Ok(false)
 }

@@ -26,7 +26,8 @@
 //!    the new bits a whole number of bytes longer or shorter than the old, else copied with
 //!    a bit shift (stuffing undone on reading and done again on writing), padded with 1
 //!    bits and followed by its RST marker. Intervals without a drawn MCU are copied byte
-//!    for byte; the file's trailer (EOI, anything after it) ends the output. All headers
+//!    for byte; the file's trailer (EOI, anything after it) ends the output, and an EOI
+//!    when the file had none. All headers
 //!    (APPn with EXIF and ICC, DQT, DHT, SOF, DRI, SOS) stay byte-identical.
 //!
 //! A grey (one-component) frame cannot hold the overlay's colours, so it becomes YCbCr
@@ -224,11 +225,11 @@ impl<'a> Jpeg<'a> {
         }
         let restarts = self.headers.restart_interval > 0;
         let entropy = Entropy::split(self.file, self.headers.sos.end, restarts)?;
-        markers::check_trailer(self.file, entropy.end)?;
+        let ends_in_eoi = markers::check_trailer(self.file, entropy.end)?;
         let headers = self.output_headers();
         let headers_len = headers.len();
         let grey_prefix = self.headers.sof.start;
-        let (bytes, report) = scan::rewrite(
+        let (mut bytes, report) = scan::rewrite(
             self.file,
             &self.layout,
             &entropy,
@@ -237,6 +238,9 @@ impl<'a> Jpeg<'a> {
             headers,
             align,
         )?;
+        if !ends_in_eoi {
+            bytes.extend_from_slice(&[0xFF, 0xD9]);
+        }
         Ok(Spliced {
             bytes,
             drawn_mcus: touched.len(),

@@ -298,3 +298,26 @@ fn a_jpeg_declaring_another_size_than_the_decoded_one_is_redrawn_whole() {
         assert_eq!(annotated, whole, "{size_px:?}");
     }
 }
+
+/// Found by `cargo fuzz` (kept as a seed): a grey JPEG that stops after its scan, with no
+/// EOI. zune-jpeg accepts that of a one-scan file, but in strict mode not of the three
+/// scans of its spliced version. The splice adds the EOI; every decoder then reads it.
+#[test]
+fn a_grey_jpeg_without_eoi_gets_one_and_decodes_once_spliced() {
+    let jpeg: &[u8] = include_bytes!("../../../../fuzz/seeds/splice/crash_grey_without_eoi.jpg");
+    assert_ne!(jpeg.get(jpeg.len() - 2..), Some(&[0xFF, 0xD9][..]));
+    let spliced = Jpeg::parse(jpeg)
+        .and_then(|j| {
+            let mut drawing = j.canvas();
+            drawing.put(3, 3, OUTLINE);
+            j.splice(&drawing)
+        })
+        .expect("spliced");
+    assert_eq!(
+        spliced.bytes.get(spliced.bytes.len() - 2..),
+        Some(&[0xFF, 0xD9][..])
+    );
+    let limits = qrpose_detect::decode::DecodeLimits::default();
+    let decoded = qrpose_detect::decode::decode_gray(&spliced.bytes, &limits).expect("decodes");
+    assert_eq!((decoded.width(), decoded.height()), (11, 49));
+}
