@@ -346,3 +346,48 @@ fn the_servers_cap_lowers_a_larger_deadline() {
         [ImageWarningDto::DetectionBudgetExhausted]
     );
 }
+
+/// The robot's usual frame: one code, 50 mm at 0.5 m (about 4 px per module at f = 1000 px,
+/// the speed benchmark's code), blurred a little. It is read by the first passes, and the
+/// sharpened whole-frame read, which would more than double its detection time, is not
+/// run: the small-code trigger wants two codes read (a shelf).
+#[test]
+fn a_lone_small_code_is_read_without_the_sharpened_read() {
+    let marker = Marker::try_new(50.0).expect("valid size");
+    let scene = Scene {
+        payload: b"SKU-0042-warehouse-bin-17".to_vec(),
+        ec_level: EcLevel::M,
+        marker,
+        camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("valid camera"),
+        width_px: 1280,
+        height_px: 720,
+        pose: marker.pose_centred_at(
+            EulerXyz::from_degrees(20.0, -15.0, 30.0).to_rotation(),
+            Vector3::new(40.0, -20.0, 500.0),
+        ),
+    };
+    let effects = Effects {
+        blur_px: 0.8,
+        noise: 2.0,
+        encoding: Encoding::Jpeg(85),
+        seed: 3,
+        ..Effects::default()
+    };
+    let image = render(&scene, &effects).expect("renders").image;
+    let budget = Budget {
+        effort: Effort::Balanced,
+        max_detect: Some(ROOMY),
+    };
+    let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
+    assert_eq!(texts(&detection), ["SKU-0042-warehouse-bin-17"]);
+    let passes: Vec<&str> = detection
+        .log
+        .passes
+        .iter()
+        .map(|p| p.name.as_str())
+        .collect();
+    assert!(
+        !passes.iter().any(|p| p.contains("sharpened")),
+        "{passes:?}"
+    );
+}

@@ -6,8 +6,9 @@
 //!    symbol is kept, however many (a shelf shows dozens), and every finder-pattern triple
 //!    that did not read becomes a [`Region`].
 //!
-//!    When step 1 found nothing at all (no symbol, no triple), or when steps 1 and 2 read a
-//!    code of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module, `balanced` and
+//!    When step 1 found nothing at all (no symbol, no triple), or when steps 1 and 2 read
+//!    two codes or more, one of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per
+//!    module, `balanced` and
 //!    `thorough` read an unsharp-masked copy of frames up to [`UPSCALE_MAX_SIDE_PX`] once
 //!    more ([`find_sharpened`], after step 2): small codes under blur lose their finder
 //!    patterns' light ring to the binariser; small triples found only there get one
@@ -160,8 +161,8 @@ fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &mut PassLog)
 
 /// Step 1½ (`balanced`, `thorough`; run after step 2), on frames of at most
 /// [`UPSCALE_MAX_SIDE_PX`], when step 1 found nothing at all (neither a symbol nor a
-/// finder-pattern triple) or when a code of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`]
-/// px per module was read ([`reads_small_codes`]): rxing on an unsharp-masked copy
+/// finder-pattern triple) or when two codes or more were read, one of at most
+/// [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module ([`reads_small_codes`]): rxing on an unsharp-masked copy
 /// ([`SHARPEN_SIGMA_PX`], [`SHARPEN_AMOUNT`]). Small codes under blur (about 2-3 px per
 /// module, blur σ ≈ 1 px) lose the light ring of their finder patterns to the binariser, so
 /// step 1 sees no triple and step 2 no region; sharpening gives the ring back. The triples
@@ -229,21 +230,31 @@ fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
 /// where nothing was found), where reading every frame ≤ 1920 px meant 150.
 pub const SHARPENED_TRIGGER_MAX_PX_PER_MODULE: f64 = 6.0;
 
-/// Whether `found` holds a decoded code of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`]
-/// px per module. A code whose module count is unknown counts as a version 1 code (21
-/// modules, the fewest, so the most px per module: the trigger errs towards not firing).
+/// The small-code trigger of [`find_sharpened`] also wants this many codes read: a frame
+/// showing one code is a robot camera's usual frame, whose latency is that of the first
+/// reads (the sharpened read of a 1280 × 720 frame, 5 ms, would more than double it:
+/// `docs/detection.md`, Speed), while two or more codes make a shelf or a wall of labels,
+/// where codes the first reads miss are likely.
+pub const SHARPENED_TRIGGER_MIN_CODES: usize = 2;
+
+/// Whether `found` holds at least [`SHARPENED_TRIGGER_MIN_CODES`] decoded codes, one of
+/// them of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module. A code whose
+/// module count is unknown counts as a version 1 code (21 modules, the fewest, so the most
+/// px per module: the trigger errs towards not firing).
 fn reads_small_codes(found: &[Candidate]) -> bool {
-    found.iter().filter(|c| c.payload.is_some()).any(|c| {
-        let p = c.corners_px;
-        let shortest = (0..4)
-            .map(|i| {
-                let (a, b) = (p[i], p[(i + 1) % 4]);
-                (a.u() - b.u()).hypot(a.v() - b.v())
-            })
-            .fold(f64::INFINITY, f64::min);
-        let modules = c.module_count.unwrap_or(MIN_MODULE_COUNT) as f64;
-        shortest <= SHARPENED_TRIGGER_MAX_PX_PER_MODULE * modules
-    })
+    let decoded = || found.iter().filter(|c| c.payload.is_some());
+    decoded().count() >= SHARPENED_TRIGGER_MIN_CODES
+        && decoded().any(|c| {
+            let p = c.corners_px;
+            let shortest = (0..4)
+                .map(|i| {
+                    let (a, b) = (p[i], p[(i + 1) % 4]);
+                    (a.u() - b.u()).hypot(a.v() - b.v())
+                })
+                .fold(f64::INFINITY, f64::min);
+            let modules = c.module_count.unwrap_or(MIN_MODULE_COUNT) as f64;
+            shortest <= SHARPENED_TRIGGER_MAX_PX_PER_MODULE * modules
+        })
 }
 
 /// Modules per side of the smallest QR code (version 1).

@@ -21,6 +21,8 @@ use super::UPSCALE_MAX_SIDE_PX;
 /// scale that maps the variant's pixels back (source px per variant px).
 pub(super) struct SecondPass<'a> {
     pub(super) name: &'static str,
+    /// The backend named in the log before `name`, where two read the same variant.
+    pub(super) backend: Option<Backend>,
     detector: Box<dyn Detector>,
     /// The variant; `None` when it would not differ from what was read (e.g. a contrast
     /// stretch of an image that spans 0-255 already): the pass is then skipped.
@@ -37,10 +39,18 @@ impl<'a> SecondPass<'a> {
     ) -> Option<Self> {
         Some(Self {
             name,
+            backend: None,
             detector: detector?,
             variant: Box::new(variant),
             scale,
         })
+    }
+
+    /// This pass, logged with `backend`'s name before its own (`zxing-cpp stretched`): for
+    /// a variant that another backend also reads in the same step.
+    fn by(mut self, backend: Backend) -> Self {
+        self.backend = Some(backend);
+        self
     }
 
     /// Runs the pass, logged as `prefix` + its name, when the deadline allows and its
@@ -61,7 +71,10 @@ impl<'a> SecondPass<'a> {
         };
         Some(log.run_since(
             started,
-            format!("{prefix}{}", self.name),
+            match self.backend {
+                Some(backend) => format!("{prefix}{} {}", backend.as_str(), self.name),
+                None => format!("{prefix}{}", self.name),
+            },
             |v: &Vec<Candidate>| decoded(v),
             || read(self.detector.as_ref(), &variant, self.scale),
         ))
@@ -188,15 +201,26 @@ pub(super) fn decoded(found: &[Candidate]) -> usize {
 }
 
 /// The passes of step 2 on one crop, cheapest first: the image variants of
-/// [`second_passes`], then rqrr (its own finder search; the slowest, 20-30 ms even on a
-/// small crop).
+/// [`second_passes`] read by rxing, then rqrr (its own finder search; the slowest, 20-30 ms
+/// even on a small crop). A zxing-cpp build (`best` zxing-cpp) runs exactly these passes
+/// and then the variants again read by zxing-cpp: it reads every region the default build
+/// reads, and more, rather than other ones (with zxing-cpp's variants in their place it
+/// read fewer codes of the BoofCV `nominal` and `damaged` photos than the default build).
 pub(super) fn look_closer(crop: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
-    let mut passes = second_passes(crop, best);
+    let default = if best == Backend::ZxingCpp {
+        Backend::Rxing
+    } else {
+        best
+    };
+    let mut passes = second_passes(crop, default);
     passes.extend(SecondPass::new(
         "rqrr",
         Some(Box::new(rqrr::RqrrDetector)),
         1.0,
         move || Some(Cow::Borrowed(crop)),
     ));
+    if best != default {
+        passes.extend(second_passes(crop, best).into_iter().map(|p| p.by(best)));
+    }
     passes
 }

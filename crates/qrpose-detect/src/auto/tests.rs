@@ -84,3 +84,27 @@ fn second_passes_are_listed_cheapest_first() {
         .collect();
     assert_eq!(closer.last(), Some(&"rqrr"));
 }
+
+/// The zxing-cpp build looks closer at a region with the default build's passes first, in
+/// the same order (so it reads every region the default build reads), then with the image
+/// variants read by zxing-cpp, logged under its name.
+#[cfg(feature = "zxing-cpp")]
+#[test]
+fn the_zxing_cpp_build_looks_closer_with_the_default_passes_first() {
+    let image = tiny();
+    let listed = |best| -> Vec<(&'static str, Option<Backend>)> {
+        look_closer(&image, best)
+            .iter()
+            .map(|p| (p.name, p.backend))
+            .collect()
+    };
+    let default = listed(Backend::Rxing);
+    let zxing = listed(Backend::ZxingCpp);
+    assert_eq!(zxing.get(..default.len()), Some(default.as_slice()));
+    let more = zxing.get(default.len()..).unwrap_or_default();
+    assert!(!more.is_empty());
+    assert!(
+        more.iter().all(|(_, b)| *b == Some(Backend::ZxingCpp)),
+        "{more:?}"
+    );
+}
