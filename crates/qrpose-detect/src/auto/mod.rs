@@ -2,7 +2,9 @@
 //!
 //! 1. **Find** (every effort): rxing reads the whole frame at full resolution, where small
 //!    codes are, and (not `fast`) at half scale, where codes that fill the frame, moiré on
-//!    screens and blur read better; a zxing-cpp build reads with zxing-cpp first. Every
+//!    screens and blur read better; a zxing-cpp build also reads it with zxing-cpp (first,
+//!    but merged in only after every other pass, which then runs as in the default build:
+//!    that build reads all the default build reads, and more). Every
 //!    symbol is kept, however many (a shelf shows dozens), and every finder-pattern triple
 //!    that did not read becomes a [`Region`].
 //!
@@ -45,7 +47,7 @@ pub use passes::{
     DENOISE_SIGMA_PX, SHARPEN_AMOUNT, SHARPEN_DOUBLE_AMOUNT, SHARPEN_DOUBLE_SIGMA_PX,
     SHARPEN_SIGMA_PX,
 };
-use passes::{decoded, double_sharpened, look_closer, read_crop, rescale, second_passes};
+use passes::{decoded, double_sharpened, look_closer, read_crop, rescale, variants};
 
 /// Images up to this many px on their longer side get a double-scale second pass (the last
 /// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
@@ -71,6 +73,11 @@ struct Finds<'a> {
     regions: Vec<Region>,
     /// Corners of undecoded candidates already re-read.
     tried: Vec<[PixelPoint; 4]>,
+    /// A zxing-cpp build's read of the whole frame, merged in after every other pass: those
+    /// then run exactly as in the default build (what they skip, and whether the sharpened
+    /// read and step 3 run, depends on what was found), so this build reads everything the
+    /// default build reads, and what zxing-cpp reads besides.
+    aside: Vec<Candidate>,
 }
 
 impl Finds<'_> {
@@ -87,12 +94,11 @@ fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &mut PassLog)
     if best == Backend::ZxingCpp {
         #[cfg(feature = "zxing-cpp")]
         {
-            let read = log.run(
+            finds.aside = log.run(
                 "zxing-cpp full",
                 |v: &Vec<Candidate>| decoded(v),
                 || zxing_cpp::ZxingCppDetector::fast().detect(image),
             );
-            finds.add(read);
         }
         if !log.may_continue() {
             return;
@@ -351,7 +357,7 @@ fn regions(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
 /// the whole frame.
 fn everything(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
     let image = finds.image;
-    for pass in second_passes(image, best) {
+    for pass in variants(image, best) {
         let Some(read) = pass.run("whole ", log, |detector, variant, scale| {
             let mut more: Vec<Candidate> = detector
                 .detect(variant)
@@ -409,6 +415,7 @@ pub(crate) fn find_candidates(
         found: Vec::new(),
         regions: Vec::new(),
         tried: Vec::new(),
+        aside: Vec::new(),
     };
     find(&mut finds, effort, best, log);
     if effort != Effort::Fast {
@@ -422,6 +429,8 @@ pub(crate) fn find_candidates(
     if effort == Effort::Thorough || (effort == Effort::Balanced && small_frame) {
         everything(&mut finds, best, log);
     }
+    let aside = std::mem::take(&mut finds.aside);
+    finds.add(aside);
     finds.found
 }
 

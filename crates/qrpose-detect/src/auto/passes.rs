@@ -200,27 +200,48 @@ pub(super) fn decoded(found: &[Candidate]) -> usize {
     found.iter().filter(|c| c.payload.is_some()).count()
 }
 
-/// The passes of step 2 on one crop, cheapest first: the image variants of
-/// [`second_passes`] read by rxing, then rqrr (its own finder search; the slowest, 20-30 ms
-/// even on a small crop). A zxing-cpp build (`best` zxing-cpp) runs exactly these passes
-/// and then the variants again read by zxing-cpp: it reads every region the default build
-/// reads, and more, rather than other ones (with zxing-cpp's variants in their place it
-/// read fewer codes of the BoofCV `nominal` and `damaged` photos than the default build).
-pub(super) fn look_closer(crop: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
-    let default = if best == Backend::ZxingCpp {
+/// The backend whose variants the default build reads where `best` is the best built: a
+/// zxing-cpp build runs the default build's passes too, and zxing-cpp's after them, so
+/// that it reads every code the default build reads (with zxing-cpp's variants in place of
+/// rxing's it read fewer codes of the BoofCV `nominal` and `damaged` photos).
+fn default_for(best: Backend) -> Backend {
+    if best == Backend::ZxingCpp {
         Backend::Rxing
     } else {
         best
-    };
-    let mut passes = second_passes(crop, default);
+    }
+}
+
+/// A zxing-cpp build's own variants (none in the default build), logged under its name.
+fn zxing_cpp_variants(image: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
+    if best == default_for(best) {
+        return Vec::new();
+    }
+    second_passes(image, best)
+        .into_iter()
+        .map(|p| p.by(best))
+        .collect()
+}
+
+/// Step 3's variants of the whole frame: the default build's [`second_passes`], then a
+/// zxing-cpp build's.
+pub(super) fn variants(image: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
+    let mut passes = second_passes(image, default_for(best));
+    passes.extend(zxing_cpp_variants(image, best));
+    passes
+}
+
+/// The passes of step 2 on one crop, cheapest first: the default build's variants of
+/// [`second_passes`], then rqrr (its own finder search; the slowest, 20-30 ms even on a
+/// small crop), then a zxing-cpp build's variants.
+pub(super) fn look_closer(crop: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
+    let mut passes = second_passes(crop, default_for(best));
     passes.extend(SecondPass::new(
         "rqrr",
         Some(Box::new(rqrr::RqrrDetector)),
         1.0,
         move || Some(Cow::Borrowed(crop)),
     ));
-    if best != default {
-        passes.extend(second_passes(crop, best).into_iter().map(|p| p.by(best)));
-    }
+    passes.extend(zxing_cpp_variants(crop, best));
     passes
 }
