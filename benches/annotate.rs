@@ -19,6 +19,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use qrpose::annotate::raster::{Style, draw_overlay};
 use qrpose::annotate::{OutputFormat, annotated_image, codec, overlay};
 use qrpose::api::image::{ImageLimits, ImageQuery, ImageResponse, estimate_image_from_query};
+use qrpose::geometry::camera::Camera;
 use std::hint::black_box;
 use std::time::Instant;
 
@@ -33,6 +34,15 @@ fn query() -> ImageQuery {
     }
 }
 
+/// The camera of [`query`], as the routes validate it.
+fn camera() -> Option<Camera> {
+    query()
+        .into_request()
+        .and_then(|r| r.validate(ImageLimits::default().max_detect_ms))
+        .ok()
+        .map(|r| r.setup.camera)
+}
+
 /// What the plain route's job does: estimate and serialise.
 fn plain(jpeg: &[u8]) -> Option<(ImageResponse, Vec<u8>)> {
     let response = estimate_image_from_query(jpeg, query(), &ImageLimits::default()).ok()?;
@@ -44,25 +54,14 @@ fn plain(jpeg: &[u8]) -> Option<(ImageResponse, Vec<u8>)> {
 /// the result header.
 fn annotated(jpeg: &[u8], format: OutputFormat) -> Option<(Vec<u8>, String)> {
     let (response, json) = plain(jpeg)?;
-    let camera = query()
-        .into_request()
-        .and_then(|r| r.validate(ImageLimits::default().max_detect_ms))
-        .ok()?
-        .setup
-        .camera;
-    let image = annotated_image(jpeg, &response, &camera, format).ok()?;
+    let image = annotated_image(jpeg, &response, &camera()?, format).ok()?;
     let header = base64::engine::general_purpose::URL_SAFE_NO_PAD.encode(json);
     Some((image, header))
 }
 
 /// The whole-frame path: decode in colour, draw, encode.
 fn whole_frame(jpeg: &[u8], response: &ImageResponse) -> Option<Vec<u8>> {
-    let camera = query()
-        .into_request()
-        .and_then(|r| r.validate(ImageLimits::default().max_detect_ms))
-        .ok()?
-        .setup
-        .camera;
+    let camera = camera()?;
     let mut raster = codec::decode_rgb(jpeg).ok()?;
     let style = Style::for_image(raster.width_px(), raster.height_px());
     let overlay = overlay::overlay_of(response, &camera, style.label_height_px());
@@ -101,12 +100,7 @@ fn bench(c: &mut Criterion) {
     let Some((response, _)) = plain(&jpeg) else {
         return;
     };
-    let camera = query()
-        .into_request()
-        .and_then(|r| r.validate(ImageLimits::default().max_detect_ms))
-        .ok()
-        .map(|r| r.setup.camera);
-    if let Some(camera) = camera {
+    if let Some(camera) = camera() {
         c.bench_function("drawing only, jpeg 1280x720", |b| {
             b.iter(|| annotated_image(black_box(&jpeg), &response, &camera, OutputFormat::Jpeg))
         });

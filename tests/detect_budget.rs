@@ -133,25 +133,36 @@ fn a_frame_without_a_code_costs_only_the_whole_frame_reads() {
     }
 }
 
-/// A small code under blur in a 1280 × 720 frame, as in the rendered accuracy set: 21
-/// modules on about 50 px (2.4 px a module), blur σ 1.2 px, JPEG 89. `variant` varies the
-/// payload, tilt and noise seed.
-fn small_blurred_code(variant: u32) -> GrayImage {
+/// One 50 mm code (EC level M) in a 1280 × 720 frame seen with f = 1000 px, turned by the
+/// Euler angles `euler_deg` and centred at `centre_mm` in the camera frame.
+fn one_code_scene(payload: &[u8], euler_deg: [f64; 3], centre_mm: [f64; 3]) -> Scene {
     let marker = Marker::try_new(50.0).expect("valid size");
-    let tilt_deg = 10.0 + 5.0 * f64::from(variant);
-    let scene = Scene {
-        payload: format!("SKU-{variant:04}").into_bytes(),
+    let [alpha, beta, gamma] = euler_deg;
+    let [x, y, z] = centre_mm;
+    Scene {
+        payload: payload.to_vec(),
         ec_level: EcLevel::M,
         marker,
         camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("valid camera"),
         width_px: 1280,
         height_px: 720,
         pose: marker.pose_centred_at(
-            EulerXyz::from_degrees(tilt_deg, -0.5 * tilt_deg, 30.0 * f64::from(variant))
-                .to_rotation(),
-            Vector3::new(-120.0, 60.0, 1000.0),
+            EulerXyz::from_degrees(alpha, beta, gamma).to_rotation(),
+            Vector3::new(x, y, z),
         ),
-    };
+    }
+}
+
+/// A small code under blur in a 1280 × 720 frame, as in the rendered accuracy set: 21
+/// modules on about 50 px (2.4 px a module), blur σ 1.2 px, JPEG 89. `variant` varies the
+/// payload, tilt and noise seed.
+fn small_blurred_code(variant: u32) -> GrayImage {
+    let tilt_deg = 10.0 + 5.0 * f64::from(variant);
+    let scene = one_code_scene(
+        format!("SKU-{variant:04}").as_bytes(),
+        [tilt_deg, -0.5 * tilt_deg, 30.0 * f64::from(variant)],
+        [-120.0, 60.0, 1000.0],
+    );
     let effects = Effects {
         supersample: 4,
         blur_px: 1.2,
@@ -353,19 +364,11 @@ fn the_servers_cap_lowers_a_larger_deadline() {
 /// run: the small-code trigger wants two codes read (a shelf).
 #[test]
 fn a_lone_small_code_is_read_without_the_sharpened_read() {
-    let marker = Marker::try_new(50.0).expect("valid size");
-    let scene = Scene {
-        payload: b"SKU-0042-warehouse-bin-17".to_vec(),
-        ec_level: EcLevel::M,
-        marker,
-        camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("valid camera"),
-        width_px: 1280,
-        height_px: 720,
-        pose: marker.pose_centred_at(
-            EulerXyz::from_degrees(20.0, -15.0, 30.0).to_rotation(),
-            Vector3::new(40.0, -20.0, 500.0),
-        ),
-    };
+    let scene = one_code_scene(
+        b"SKU-0042-warehouse-bin-17",
+        [20.0, -15.0, 30.0],
+        [40.0, -20.0, 500.0],
+    );
     let effects = Effects {
         blur_px: 0.8,
         noise: 2.0,
