@@ -76,7 +76,8 @@ struct Finds<'a> {
     /// A zxing-cpp build's read of the whole frame, merged in after every other pass: those
     /// then run exactly as in the default build (what they skip, and whether the sharpened
     /// read and step 3 run, depends on what was found), so this build reads everything the
-    /// default build reads, and what zxing-cpp reads besides.
+    /// default build reads, and what zxing-cpp reads besides. Where both found a symbol,
+    /// zxing-cpp's candidate is the one kept, as when its read was merged first.
     aside: Vec<Candidate>,
 }
 
@@ -429,8 +430,14 @@ pub(crate) fn find_candidates(
     if effort == Effort::Thorough || (effort == Effort::Balanced && small_frame) {
         everything(&mut finds, best, log);
     }
+    // zxing-cpp's symbols first, as its read came first: where both backends found a
+    // symbol, its candidate is kept (and refined), the others merged into its list.
     let aside = std::mem::take(&mut finds.aside);
-    finds.add(aside);
+    if !aside.is_empty() {
+        let others = std::mem::take(&mut finds.found);
+        finds.add(aside);
+        merge_candidates(&mut finds.found, others);
+    }
     finds.found
 }
 
