@@ -16,7 +16,8 @@ fn centroid(c: &[PixelPoint; 4]) -> PixelPoint {
     )
 }
 
-fn shortest_side_px(c: &[PixelPoint; 4]) -> f64 {
+/// The shortest side of a quadrilateral, px.
+pub(crate) fn shortest_side_px(c: &[PixelPoint; 4]) -> f64 {
     (0..4)
         .map(|i| (c[i].0 - c[(i + 1) % 4].0).norm())
         .fold(f64::INFINITY, f64::min)

@@ -33,7 +33,7 @@
 use crate::budget::{Effort, PassLog};
 use crate::filters::{downscale_half, sharpen};
 use crate::gray::GrayImage;
-use crate::merge::{any_decoded, reread_undecoded, same_symbol};
+use crate::merge::{any_decoded, reread_undecoded, same_symbol, shortest_side_px};
 use crate::region::{Crop, Region, unread_regions};
 #[cfg(feature = "zxing-cpp")]
 use crate::zxing_cpp;
@@ -252,15 +252,8 @@ fn reads_small_codes(found: &[Candidate]) -> bool {
     let decoded = || found.iter().filter(|c| c.payload.is_some());
     decoded().count() >= SHARPENED_TRIGGER_MIN_CODES
         && decoded().any(|c| {
-            let p = c.corners_px;
-            let shortest = (0..4)
-                .map(|i| {
-                    let (a, b) = (p[i], p[(i + 1) % 4]);
-                    (a.u() - b.u()).hypot(a.v() - b.v())
-                })
-                .fold(f64::INFINITY, f64::min);
             let modules = c.module_count.unwrap_or(MIN_MODULE_COUNT) as f64;
-            shortest <= SHARPENED_TRIGGER_MAX_PX_PER_MODULE * modules
+            shortest_side_px(&c.corners_px) <= SHARPENED_TRIGGER_MAX_PX_PER_MODULE * modules
         })
 }
 

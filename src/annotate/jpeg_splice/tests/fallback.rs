@@ -218,6 +218,23 @@ fn the_chrominance_tables_are_complete() {
     assert!(ac.code(0x00).is_ok() && ac.code(0xF0).is_ok());
 }
 
+/// `jpeg` spliced with one pixel drawn at (`x`, `y`).
+fn splice_one_pixel(jpeg: &[u8], x: i64, y: i64) -> Result<Spliced, CannotSplice> {
+    let parsed = Jpeg::parse(jpeg)?;
+    let mut drawing = parsed.canvas();
+    drawing.put(x, y, OUTLINE);
+    parsed.splice(&drawing)
+}
+
+/// Annotating `jpeg` (which decodes to `size_px`) gives a JPEG that decodes to that size.
+fn assert_annotated_decodes(jpeg: &[u8], size_px: (usize, usize)) -> Vec<u8> {
+    let annotated =
+        annotated_with(jpeg, OutputFormat::Jpeg, size_px, |_| overlay()).expect("annotated");
+    let decoded = codec::decode_rgb(&annotated).expect("the annotated image decodes");
+    assert_eq!((decoded.width_px(), decoded.height_px()), size_px);
+    annotated
+}
+
 /// Found by `cargo fuzz` (fuzz/fuzz_targets/splice.rs; the file is kept as a seed): a 4:2:0
 /// JPEG whose scan is followed by fill bytes and an APP1 segment longer than the rest of
 /// the file. zune-jpeg decodes it, but once spliced (the overlay's blocks re-encoded, the
@@ -228,28 +245,17 @@ fn the_chrominance_tables_are_complete() {
 fn a_segment_running_past_the_end_after_the_scan_falls_back() {
     let jpeg: &[u8] =
         include_bytes!("../../../../fuzz/seeds/splice/crash_truncated_app1_after_scan.jpg");
-    let refused = Jpeg::parse(jpeg).and_then(|j| {
-        j.splice(&j.canvas()).map(|_| ()).and_then(|()| {
-            let mut drawing = j.canvas();
-            drawing.put(0, 0, OUTLINE);
-            j.splice(&drawing).map(|_| ())
-        })
-    });
     assert_eq!(
-        refused,
-        Err(CannotSplice::Malformed(
+        splice_one_pixel(jpeg, 0, 0).err(),
+        Some(CannotSplice::Malformed(
             "a segment after the scan runs past the end"
         ))
     );
-    let size_px = (80, 48);
-    let annotated =
-        annotated_with(jpeg, OutputFormat::Jpeg, size_px, |_| overlay()).expect("annotated");
+    let annotated = assert_annotated_decodes(jpeg, (80, 48));
     assert_eq!(
         annotated,
         redrawn(jpeg, OutputFormat::Jpeg, &|_| overlay()).expect("drawn")
     );
-    let decoded = codec::decode_rgb(&annotated).expect("the annotated image decodes");
-    assert_eq!((decoded.width_px(), decoded.height_px()), size_px);
 }
 
 /// Found by `cargo fuzz` (kept as a seed): a grey JPEG followed, after its scan, by a DHT
@@ -260,26 +266,17 @@ fn a_segment_running_past_the_end_after_the_scan_falls_back() {
 fn tables_after_the_scan_fall_back() {
     let jpeg: &[u8] =
         include_bytes!("../../../../fuzz/seeds/splice/crash_grey_bad_dht_after_scan.jpg");
-    let mut refused = Jpeg::parse(jpeg).and_then(|j| {
-        let mut drawing = j.canvas();
-        drawing.put(0, 0, OUTLINE);
-        j.splice(&drawing)
-    });
     assert_eq!(
-        refused.as_ref().err(),
-        Some(&CannotSplice::Malformed("tables after the scan"))
+        splice_one_pixel(jpeg, 0, 0).err(),
+        Some(CannotSplice::Malformed("tables after the scan"))
     );
-    let size_px = (11, 64);
-    let annotated =
-        annotated_with(jpeg, OutputFormat::Jpeg, size_px, |_| overlay()).expect("annotated");
-    let decoded = codec::decode_rgb(&annotated).expect("the annotated image decodes");
-    assert_eq!((decoded.width_px(), decoded.height_px()), size_px);
+    assert_annotated_decodes(jpeg, (11, 64));
     // A table after the scan of an otherwise clean file is refused the same way.
     let clean = encode(COLOUR_420, |_| {});
     let eoi = clean.len() - 2;
     let dqt: Vec<u8> = [&[0xFF, 0xDB, 0, 67, 0][..], &[1; 64]].concat();
     let with_table = [&clean[..eoi], &dqt, &clean[eoi..]].concat();
-    refused = Jpeg::parse(&with_table).and_then(|j| j.splice(&drawing(&j, &writes())));
+    let refused = Jpeg::parse(&with_table).and_then(|j| j.splice(&drawing(&j, &writes())));
     assert_eq!(
         refused.err(),
         Some(CannotSplice::Malformed("tables after the scan"))
@@ -306,13 +303,7 @@ fn a_jpeg_declaring_another_size_than_the_decoded_one_is_redrawn_whole() {
 fn a_grey_jpeg_without_eoi_gets_one_and_decodes_once_spliced() {
     let jpeg: &[u8] = include_bytes!("../../../../fuzz/seeds/splice/crash_grey_without_eoi.jpg");
     assert_ne!(jpeg.get(jpeg.len() - 2..), Some(&[0xFF, 0xD9][..]));
-    let spliced = Jpeg::parse(jpeg)
-        .and_then(|j| {
-            let mut drawing = j.canvas();
-            drawing.put(3, 3, OUTLINE);
-            j.splice(&drawing)
-        })
-        .expect("spliced");
+    let spliced = splice_one_pixel(jpeg, 3, 3).expect("spliced");
     assert_eq!(
         spliced.bytes.get(spliced.bytes.len() - 2..),
         Some(&[0xFF, 0xD9][..])
