@@ -5,7 +5,7 @@
 use super::super::overlay::Rgb;
 use std::f32::consts::{FRAC_1_SQRT_2, SQRT_2};
 
-/// Coefficients of one block in natural (row-major) order.
+/// Coefficients of one block in zigzag order, as the entropy coding reads and writes them.
 pub type Coefficients = [i32; 64];
 
 /// The natural index of the k-th coefficient in zigzag order.
@@ -142,15 +142,24 @@ fn aan(k: usize) -> f32 {
 }
 
 impl Transform {
-    /// The samples (0-255 scale, unclamped, unrounded) of quantized `coefficients` under the
-    /// natural-order `quant` table.
+    /// The samples (0-255 scale, unclamped, unrounded) of quantized `coefficients` under
+    /// `quant`.
     pub fn samples(&self, coefficients: &Coefficients, quant: &Quantizer) -> [f32; 64] {
         if coefficients.iter().all(|&c| c == 0) {
             return [128.0; 64];
         }
-        let mut f = [0.0_f32; 64];
-        for ((out, &c), &q) in f.iter_mut().zip(coefficients).zip(&quant.dequantize) {
+        // Dequantized in zigzag order (a loop that vectorizes), then put in natural order.
+        let mut dequantized = [0.0_f32; 64];
+        for ((out, &c), &q) in dequantized
+            .iter_mut()
+            .zip(coefficients)
+            .zip(&quant.dequantize)
+        {
             *out = c as f32 * q;
+        }
+        let mut f = [0.0_f32; 64];
+        for (&v, &n) in dequantized.iter().zip(&ZIGZAG) {
+            f[usize::from(n) & 63] = v;
         }
         // Down the columns, then along the rows; each pass scales by √8.
         let s = transpose(&inverse(&transpose(&inverse(&matrix(&f)))));
@@ -170,20 +179,19 @@ impl Transform {
         coefficients
     }
 
-    /// The quantized coefficients of `samples` (0-255 scale) under the natural-order `quant`.
+    /// The quantized coefficients of `samples` (0-255 scale) under `quant`.
     pub fn coefficients(&self, samples: &[f32; 64], quant: &Quantizer) -> Coefficients {
         let shifted = matrix(&samples.map(|s| s - 128.0));
         // Down the columns, then along the rows; each pass scales by √8 · aan.
         let f = transpose(&forward(&transpose(&forward(&shifted))));
+        let f = f.as_flattened();
+        // Put in zigzag order, then quantized (a loop that vectorizes).
+        let zigzag: [f32; 64] = ZIGZAG.map(|n| f[usize::from(n) & 63]);
         let mut coefficients = [0_i32; 64];
-        for ((out, &value), &q) in coefficients
-            .iter_mut()
-            .zip(f.as_flattened())
-            .zip(&quant.quantize)
-        {
+        for ((out, &value), &q) in coefficients.iter_mut().zip(&zigzag).zip(&quant.quantize) {
             *out = quantize(value, q, MAX_AC);
         }
-        coefficients[0] = quantize(f[0][0], quant.quantize[0], MAX_DC);
+        coefficients[0] = quantize(f[0], quant.quantize[0], MAX_DC);
         coefficients
     }
 }
@@ -202,11 +210,11 @@ fn quantize(value: f32, reciprocal: f32, limit: i32) -> i32 {
 /// A quantization table with the AAN scale factors folded in, for [`Transform`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Quantizer {
-    /// By natural index: what a quantized coefficient is multiplied by before the inverse
+    /// In zigzag order: what a quantized coefficient is multiplied by before the inverse
     /// transform, q · aan(u) · aan(v).
     dequantize: [f32; 64],
-    /// What the forward transform's output is multiplied by before rounding,
-    /// 1 / (8 · aan(u) · aan(v) · q).
+    /// In zigzag order: what the forward transform's output is multiplied by before
+    /// rounding, 1 / (8 · aan(u) · aan(v) · q).
     quantize: [f32; 64],
 }
 
@@ -219,9 +227,12 @@ impl Quantizer {
                 *slot = f32::from(q);
             }
         }
+        let dequantize: [f32; 64] = std::array::from_fn(|k| natural[k] * aan(k));
+        let quantize: [f32; 64] = std::array::from_fn(|k| 1.0 / (8.0 * aan(k) * natural[k]));
+        let zigzag_order = |table: [f32; 64]| ZIGZAG.map(|n| table[usize::from(n) & 63]);
         Self {
-            dequantize: std::array::from_fn(|k| natural[k] * aan(k)),
-            quantize: std::array::from_fn(|k| 1.0 / (8.0 * aan(k) * natural[k])),
+            dequantize: zigzag_order(dequantize),
+            quantize: zigzag_order(quantize),
         }
     }
 }
@@ -304,7 +315,9 @@ mod tests {
         let samples: [f32; 64] = std::array::from_fn(|i| ((i * 37 + i * i) % 256) as f32);
         let quant = Quantizer::new(&[1; 64]);
         let coefficients = Transform.coefficients(&samples, &quant);
-        for (k, (&got, want)) in coefficients.iter().zip(reference(&samples)).enumerate() {
+        let reference = reference(&samples);
+        for (k, (&got, &n)) in coefficients.iter().zip(&ZIGZAG).enumerate() {
+            let want = reference[usize::from(n)];
             assert!(
                 (f64::from(got) - want).abs() <= 0.51,
                 "{k}: {got} against {want:.3}"

@@ -2,7 +2,7 @@
 //! past it, and writing it with given Huffman tables.
 
 use super::CannotSplice;
-use super::block::{Coefficients, ZIGZAG};
+use super::block::Coefficients;
 use super::entropy::{BitReader, BitWriter, Pending};
 use super::huffman::{self, Decoder, Encoder};
 
@@ -19,7 +19,7 @@ fn extend(bits: u32, size: u32) -> i32 {
     }
 }
 
-/// Reads one block; its DC updates `dc`. With `out`, stores its coefficients (natural order).
+/// Reads one block; its DC updates `dc`. With `out`, stores its coefficients (zigzag order).
 #[inline]
 pub fn read_block(
     reader: &mut BitReader<'_>,
@@ -61,7 +61,7 @@ pub fn read_block(
             return Err(CannotSplice::BadEntropy);
         }
         let value = extend(value_bits(ahead, length, size), size);
-        if let Some(slot) = ZIGZAG.get(k).and_then(|&n| out.get_mut(usize::from(n))) {
+        if let Some(slot) = out.get_mut(k) {
             *slot = value;
         }
         reader.consume(length + size);
@@ -145,7 +145,7 @@ fn magnitude(value: i32) -> (u32, u32) {
     (size, bits)
 }
 
-/// Writes one block (natural order) after the DC predictor `dc`, which it updates. When it
+/// Writes one block (zigzag order) after the DC predictor `dc`, which it updates. When it
 /// ends in an end-of-block code (its last code written), the number of zero coefficients
 /// that code stands for.
 ///
@@ -190,13 +190,9 @@ fn encode_block(
     }
     let (code, length) = dc_encoder.code(u8::try_from(size).unwrap_or(0))?;
     bits.put(out, code << size | value_bits, length + size, stuffing);
-    // The AC coefficients in zigzag order, and which are not zero.
-    let mut zigzag = [0_i32; 64];
+    // Which AC coefficients are not zero.
     let mut nonzero = 0_u64;
-    for k in 1..64 {
-        // ZIGZAG holds indices below 64.
-        let value = coefficients[usize::from(ZIGZAG[k]) & 63];
-        zigzag[k] = value;
+    for (k, &value) in coefficients.iter().enumerate().skip(1) {
         nonzero |= u64::from(value != 0) << k;
     }
     let mut next = 1_u32;
@@ -209,7 +205,7 @@ fn encode_block(
             bits.put(out, code, length, stuffing);
             run -= 16;
         }
-        let (size, value_bits) = magnitude(zigzag[(k & 63) as usize]);
+        let (size, value_bits) = magnitude(coefficients[(k & 63) as usize]);
         if size > 10 {
             return Err(CannotSplice::BadEntropy);
         }

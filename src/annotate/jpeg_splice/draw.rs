@@ -30,6 +30,9 @@ pub struct Drawing {
     /// Per tile, an MCU's pixels row by row: 0 where nothing is drawn, else 1 + the index of
     /// the colour in `palette`.
     tiles: Vec<u8>,
+    /// Per tile, the drawn pixels' bounding box in the MCU, (left, top, right, bottom)
+    /// inclusive, kept as pixels are written.
+    bounds: Vec<[usize; 4]>,
     /// Pixels per tile.
     tile_len: usize,
     /// The colours drawn.
@@ -48,6 +51,7 @@ impl Drawing {
             tile_of: vec![0; grid.total()],
             touched: Vec::new(),
             tiles: Vec::new(),
+            bounds: Vec::new(),
             tile_len: grid.mcu_px.0 * grid.mcu_px.1,
             palette: Vec::new(),
             last: None,
@@ -135,6 +139,15 @@ impl Canvas for Drawing {
                 if let Some(pixels) = self.tiles.get_mut(start..start + (end - x)) {
                     pixels.fill(index);
                 }
+                let (left, top) = (local % mcu_w, local / mcu_w);
+                if let Some(b) = self.bounds.get_mut(tile) {
+                    *b = [
+                        b[0].min(left),
+                        b[1].min(top),
+                        b[2].max(left + (end - x) - 1),
+                        b[3].max(top),
+                    ];
+                }
             }
             x = end;
         }
@@ -152,6 +165,7 @@ impl Drawing {
                 tile: self.touched.len(),
             });
             self.tiles.resize(self.tiles.len() + self.tile_len, 0);
+            self.bounds.push([usize::MAX, usize::MAX, 0, 0]);
         }
         Some(*slot as usize - 1)
     }
@@ -177,18 +191,9 @@ impl Drawing {
             .get(start..start + self.tile_len)
             .unwrap_or_default();
         let mcu_w = layout.grid.mcu_px.0;
-        // The drawn pixels' bounding box in the MCU, (left, top, right, bottom) inclusive.
-        let mut bounds = (usize::MAX, usize::MAX, 0, 0);
-        for (y, row) in tile.chunks_exact(mcu_w).enumerate() {
-            for (x, _) in row.iter().enumerate().filter(|(_, c)| **c != 0) {
-                bounds = (
-                    bounds.0.min(x),
-                    bounds.1.min(y),
-                    bounds.2.max(x),
-                    bounds.3.max(y),
-                );
-            }
-        }
+        let Some(&[min_x, min_y, max_x, max_y]) = self.bounds.get(touched.tile) else {
+            return;
+        };
         // Blocks of one footprint (a grey frame's Y, Cb and Cr; 4:2:0's Cb and Cr) share
         // their sums: the last footprint's are kept.
         let mut cached: Option<((usize, usize, usize, usize), Sums)> = None;
@@ -199,11 +204,7 @@ impl Drawing {
             let (sx, sy) = p.step;
             // The block's pixels in the MCU: 8 × 8 samples of sx × sy pixels each.
             let (left, top, width, height) = (bx * 8 * sx, by * 8 * sy, 8 * sx, 8 * sy);
-            if bounds.0 >= left + width
-                || bounds.2 < left
-                || bounds.1 >= top + height
-                || bounds.3 < top
-            {
+            if min_x >= left + width || max_x < left || min_y >= top + height || max_y < top {
                 continue;
             }
             let footprint = (left, top, sx, sy);
@@ -215,16 +216,10 @@ impl Drawing {
                         .1
                 }
             };
-            let channel: [f32; 64] =
-                std::array::from_fn(|i| sums.values.get(i).map_or(0.0, |v| v[p.channel % 3]));
-            draw_block(
-                transform,
-                &p.quant,
-                coefficients,
-                &channel,
-                &sums.hits,
-                sx * sy,
-            );
+            let Some(channel) = sums.values.get(p.channel) else {
+                continue;
+            };
+            draw_block(transform, &p.quant, coefficients, channel, sums, sx * sy);
         }
     }
 }
@@ -238,8 +233,10 @@ fn sums(
     (left, top, sx, sy): (usize, usize, usize, usize),
 ) -> Sums {
     let mut sums = Sums {
-        values: [[0.0; 3]; 64],
+        values: [[0.0; 64]; 3],
         hits: [0; 64],
+        drawn: 0,
+        full: 0,
     };
     let (x_shift, y_shift) = (sx / 2, sy / 2);
     for dy in 0..8 * sy {
@@ -253,46 +250,51 @@ fn sums(
             else {
                 continue;
             };
-            let sample = sample_row + (dx >> x_shift);
-            if let (Some(sum), Some(hit)) = (sums.values.get_mut(sample), sums.hits.get_mut(sample))
-            {
-                for (s, v) in sum.iter_mut().zip(ycc) {
-                    *s += v;
-                }
-                *hit += 1;
+            let sample = (sample_row + (dx >> x_shift)) & 63;
+            for (values, &v) in sums.values.iter_mut().zip(ycc) {
+                values[sample] += v;
             }
+            sums.hits[sample] += 1;
         }
+    }
+    let covered = u8::try_from(sx * sy).unwrap_or(1);
+    for &hit in &sums.hits {
+        sums.drawn += usize::from(hit > 0);
+        sums.full += usize::from(hit == covered);
     }
     sums
 }
 
 /// Per sample of a block: the sums of the drawn values (Y, Cb, Cr) over the pixels it
-/// covers, and how many of them are drawn.
+/// covers, and how many of them are drawn; how many samples hold a drawn pixel, and how
+/// many are drawn over entirely.
 #[derive(Debug, Clone, Copy)]
 struct Sums {
-    values: [[f32; 3]; 64],
+    values: [[f32; 64]; 3],
     hits: [u8; 64],
+    drawn: usize,
+    full: usize,
 }
 
-/// Draws into one block the `sums` of the drawn values over the pixels of each sample and
-/// their number `hits`, of `covered` pixels per sample.
+/// Draws into one block the sums of the drawn values `channel` over the pixels of each
+/// sample (their numbers in `sums`), of `covered` pixels per sample.
 fn draw_block(
     transform: &Transform,
     quant: &Quantizer,
     coefficients: &mut Coefficients,
-    sums: &[f32; 64],
-    hits: &[u8; 64],
+    channel: &[f32; 64],
+    sums: &Sums,
     covered: usize,
 ) {
     // covered is 1, 2 or 4.
     let covered = u8::try_from(covered).unwrap_or(1);
     let scale = f32::from(covered);
-    if hits.iter().all(|&h| h == 0) {
+    if sums.drawn == 0 {
         return;
     }
-    if hits.iter().all(|&h| h == covered) {
+    if sums.full == 64 {
         // Every sample drawn over: the block's old content does not matter.
-        let samples = sums.map(|sum| sum / scale);
+        let samples = channel.map(|sum| sum / scale);
         *coefficients = if samples.iter().all(|&v| v == samples[0]) {
             transform.flat(samples[0], quant)
         } else {
@@ -302,13 +304,22 @@ fn draw_block(
     }
     let mut samples = transform.samples(coefficients, quant);
     let mut changed = false;
-    for ((sample, &sum), &hit) in samples.iter_mut().zip(sums).zip(hits) {
-        if hit == 0 {
-            continue;
+    if covered == 1 {
+        // A pixel per sample: a drawn sample takes the drawn value (a loop without branches).
+        for ((sample, &value), &hit) in samples.iter_mut().zip(channel).zip(&sums.hits) {
+            let drawn = hit != 0;
+            changed |= drawn & ((value - *sample).abs() > 1e-3);
+            *sample = if drawn { value } else { *sample };
         }
-        let value = (sum + f32::from(covered - hit) * *sample) / scale;
-        changed |= (value - *sample).abs() > 1e-3;
-        *sample = value;
+    } else {
+        for ((sample, &sum), &hit) in samples.iter_mut().zip(channel).zip(&sums.hits) {
+            if hit == 0 {
+                continue;
+            }
+            let value = (sum + f32::from(covered - hit) * *sample) / scale;
+            changed |= (value - *sample).abs() > 1e-3;
+            *sample = value;
+        }
     }
     if changed {
         *coefficients = transform.coefficients(&samples, quant);

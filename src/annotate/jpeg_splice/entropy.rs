@@ -324,6 +324,10 @@ impl BitWriter {
         if n == 0 || n > 32 {
             return;
         }
+        if value & (u32::MAX >> (32 - n)) == 0 {
+            self.zeros(count * n as usize);
+            return;
+        }
         // As many copies as fit in 32 bits at a time.
         let per_word = (32 / n) as usize;
         let mut word = 0_u32;
@@ -336,6 +340,31 @@ impl BitWriter {
         }
         for _ in 0..count % per_word {
             self.put(value, n);
+        }
+    }
+
+    /// Appends `bits` zero bits: whole zero bytes at once (a zero byte is never stuffed), as
+    /// a grey frame's added chroma scans are mostly made of (zero blocks of typical tables).
+    fn zeros(&mut self, bits: usize) {
+        // Up to a byte boundary of the output.
+        let lead = ((8 - self.pending.count % 8) % 8) as usize;
+        if bits < lead + 8 {
+            self.put_zeros(bits);
+            return;
+        }
+        self.put_zeros(lead);
+        self.flush_bytes();
+        let bytes = (bits - lead) / 8;
+        self.out.resize(self.out.len() + bytes, 0);
+        self.put_zeros(bits - lead - 8 * bytes);
+    }
+
+    /// Appends `bits` zero bits, 32 at a time.
+    fn put_zeros(&mut self, mut bits: usize) {
+        while bits > 0 {
+            let n = bits.min(32);
+            self.put(0, u32::try_from(n).unwrap_or(32));
+            bits -= n;
         }
     }
 
@@ -383,5 +412,58 @@ impl BitWriter {
     pub fn into_bytes(mut self) -> Vec<u8> {
         self.flush_bytes();
         self.out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The bytes of `writer` after padding, and the same bits written one at a time.
+    fn one_by_one(lead: &[(u32, u32)], value: u32, n: u32, count: usize) -> Vec<u8> {
+        let mut writer = BitWriter::new(Vec::new());
+        for &(v, bits) in lead {
+            writer.put(v, bits);
+        }
+        for _ in 0..count {
+            for bit in (0..n).rev() {
+                writer.put(value >> bit & 1, 1);
+            }
+        }
+        writer.pad();
+        writer.into_bytes()
+    }
+
+    #[test]
+    fn repeated_codes_are_the_codes_written_one_by_one() {
+        // Zero codes take the whole-byte path, others the 32-bit one; after 0-31 pending
+        // bits, with 0xFF bytes (stuffed) before them.
+        for lead in [
+            vec![],
+            vec![(1, 1)],
+            vec![(0x7F, 7)],
+            vec![(0xFFFF, 16), (5, 3)],
+            vec![(0x1234_5678, 31)],
+        ] {
+            for (value, n, count) in [
+                (0, 4, 1000),
+                (0, 3, 7),
+                (0, 9, 333),
+                (0b1010, 4, 100),
+                (1, 2, 77),
+            ] {
+                let mut writer = BitWriter::new(Vec::new());
+                for &(v, bits) in &lead {
+                    writer.put(v, bits);
+                }
+                writer.repeat(value, n, count);
+                writer.pad();
+                assert_eq!(
+                    writer.into_bytes(),
+                    one_by_one(&lead, value, n, count),
+                    "{lead:?}, {count} × {n} bits of {value:#b}"
+                );
+            }
+        }
     }
 }

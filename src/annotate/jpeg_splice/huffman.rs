@@ -2,6 +2,7 @@
 //! table built from the same specification, so that re-encoded blocks use the file's codes.
 
 use super::CannotSplice;
+use std::sync::{Arc, Mutex, PoisonError};
 
 /// Bits looked up at once; longer codes take the canonical slow path.
 const LOOKAHEAD: u32 = 9;
@@ -48,21 +49,21 @@ fn canonical_codes(spec: &HuffmanSpec) -> Result<Vec<(u32, u32)>, CannotSplice> 
 #[derive(Debug, Clone)]
 pub struct Decoder {
     /// By the next [`LOOKAHEAD`] bits: `length << 8 | symbol`, or 0 for a longer code.
-    fast: Box<[u16; 1 << LOOKAHEAD]>,
+    fast: Arc<[u16; 1 << LOOKAHEAD]>,
     /// By the next [`SKIP_LOOKAHEAD`] bits, read as an AC table: the bits of the code and
     /// its value `<< 8 |` how far it advances in the block (run + 1, 16 for ZRL,
     /// [`END_OF_BLOCK`]); 0 for a longer code or a size over 10.
-    skip: Box<[u16; 1 << SKIP_LOOKAHEAD]>,
+    skip: Arc<[u16; 1 << SKIP_LOOKAHEAD]>,
     /// By the next [`PAIR_LOOKAHEAD`] bits, read as an AC table: the first code with its
     /// value, and the second too when it fits, as `bits of the first | bits of both << 8 |
     /// advance of the first << 16 | advance of both << 24`; 0 when not even the first fits.
     /// Built by [`Self::with_pairs`].
-    pairs: Option<Box<[u32; 1 << PAIR_LOOKAHEAD]>>,
+    pairs: Option<Arc<[u32; 1 << PAIR_LOOKAHEAD]>>,
     /// The largest code of each length (index 0-16), -1 when there is none.
     max_code: [i32; 17],
     /// What to add to a code of each length to get its index in `values`.
     offset: [i32; 17],
-    values: Vec<u8>,
+    values: Arc<[u8]>,
 }
 
 impl Decoder {
@@ -103,12 +104,12 @@ impl Decoder {
             }
         }
         Ok(Self {
-            fast,
-            skip,
+            fast: Arc::from(fast),
+            skip: Arc::from(skip),
             pairs: None,
             max_code,
             offset,
-            values: spec.values.clone(),
+            values: Arc::from(spec.values.as_slice()),
         })
     }
 
@@ -167,7 +168,7 @@ impl Decoder {
             }
             *entry = first | both << 8 | u32::from(advance) << 16 | total.min(255) << 24;
         }
-        self.pairs = Some(pairs);
+        self.pairs = Some(Arc::from(pairs));
         self
     }
 
@@ -221,7 +222,7 @@ fn skip_entry(symbol: u8, length: u32) -> u16 {
 #[derive(Debug, Clone)]
 pub struct Encoder {
     /// By symbol: `length << 16 | code`, or 0 when the table has no code for it.
-    codes: Box<[u32; 256]>,
+    codes: Arc<[u32; 256]>,
 }
 
 impl Encoder {
@@ -239,7 +240,9 @@ impl Encoder {
                 }
             }
         }
-        Ok(Self { codes })
+        Ok(Self {
+            codes: Arc::from(codes),
+        })
     }
 
     /// The code of `symbol` as (code, length in bits).
@@ -254,6 +257,67 @@ impl Encoder {
             packed => Ok((packed & 0xFFFF, packed >> 16)),
         }
     }
+}
+
+/// The decoders (the AC one with [`Decoder::with_pairs`]) and encoders of a DC and an AC
+/// table.
+#[derive(Debug, Clone)]
+pub struct Coders {
+    /// Reads DC differences.
+    pub dc_decoder: Decoder,
+    /// Reads AC coefficients, and past them two codes at a time.
+    pub ac_decoder: Decoder,
+    /// Writes DC differences.
+    pub dc_encoder: Encoder,
+    /// Writes AC coefficients.
+    pub ac_encoder: Encoder,
+}
+
+impl Coders {
+    /// Whether `self` and `other` share their lookup tables (one was cloned from the other).
+    pub fn shares_tables_with(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.ac_decoder.skip, &other.ac_decoder.skip)
+            && Arc::ptr_eq(&self.ac_encoder.codes, &other.ac_encoder.codes)
+    }
+}
+
+/// How many table pairs [`coders`] remembers.
+const RECENT_CODERS: usize = 8;
+
+/// The coders of the table pairs used last, most recent first. A camera writes every frame
+/// with the same tables, and building an AC decoder's lookup tables costs about what
+/// splicing a tenth of a 1280×720 frame does; the tables are shared, not copied.
+static RECENT: Mutex<Vec<(HuffmanSpec, HuffmanSpec, Coders)>> = Mutex::new(Vec::new());
+
+/// The coders of the DC table `dc` and the AC table `ac`: built, or the ones built for the
+/// same tables by a recent call (at most [`RECENT_CODERS`] pairs are kept).
+///
+/// # Errors
+/// [`CannotSplice::Malformed`] for a table that is no prefix code.
+pub fn coders(dc: &HuffmanSpec, ac: &HuffmanSpec) -> Result<Coders, CannotSplice> {
+    let cached = {
+        let mut recent = RECENT.lock().unwrap_or_else(PoisonError::into_inner);
+        let found = recent.iter().position(|(d, a, _)| d == dc && a == ac);
+        found.map(|i| {
+            let entry = recent.remove(i);
+            let coders = entry.2.clone();
+            recent.insert(0, entry);
+            coders
+        })
+    };
+    if let Some(coders) = cached {
+        return Ok(coders);
+    }
+    let coders = Coders {
+        dc_decoder: Decoder::new(dc)?,
+        ac_decoder: Decoder::new(ac)?.with_pairs(),
+        dc_encoder: Encoder::new(dc)?,
+        ac_encoder: Encoder::new(ac)?,
+    };
+    let mut recent = RECENT.lock().unwrap_or_else(PoisonError::into_inner);
+    recent.insert(0, (dc.clone(), ac.clone(), coders.clone()));
+    recent.truncate(RECENT_CODERS);
+    Ok(coders)
 }
 
 /// ITU T.81 Annex K.3, table K.4: the typical chrominance DC table.

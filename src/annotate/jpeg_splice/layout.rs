@@ -3,7 +3,7 @@
 
 use super::CannotSplice;
 use super::block::{Quantizer, chroma_table};
-use super::huffman::{Decoder, Encoder, HuffmanSpec, chroma_ac, chroma_dc};
+use super::huffman::{Coders, Decoder, Encoder, HuffmanSpec, chroma_ac, chroma_dc, coders};
 use super::markers::{Component, Headers};
 
 /// One component: of the file's scan, or a chroma component added to a grey frame.
@@ -17,10 +17,10 @@ pub struct Plane {
     pub blocks: (usize, usize),
     /// Quantization.
     pub quant: Quantizer,
-    /// The file's DC and AC decoders; `None` for the chroma added to a grey frame.
-    pub decoders: Option<(Decoder, Decoder)>,
-    /// DC and AC encoders.
-    pub encoders: (Encoder, Encoder),
+    /// The Huffman decoders and encoders of its tables.
+    pub coders: Coders,
+    /// Whether it is one of the file's scan (not a chroma component added to a grey frame).
+    pub in_scan: bool,
     /// The AC table's ZRL code (16 zeros) as (code, length), when it has one.
     pub zrl: Option<(u32, u32)>,
     /// The length of the AC table's end-of-block code.
@@ -28,23 +28,34 @@ pub struct Plane {
 }
 
 impl Plane {
+    /// The file's DC and AC decoders; `None` for the chroma added to a grey frame.
+    pub fn decoders(&self) -> Option<(&Decoder, &Decoder)> {
+        self.in_scan
+            .then_some((&self.coders.dc_decoder, &self.coders.ac_decoder))
+    }
+
+    /// The DC and AC encoders.
+    pub fn encoders(&self) -> (&Encoder, &Encoder) {
+        (&self.coders.dc_encoder, &self.coders.ac_encoder)
+    }
+
     fn new(
         channel: usize,
         step: (usize, usize),
         blocks: (usize, usize),
         quant: Quantizer,
-        decoders: Option<(Decoder, Decoder)>,
-        encoders: (Encoder, Encoder),
+        coders: Coders,
+        in_scan: bool,
     ) -> Self {
-        let zrl = encoders.1.code(0xF0).ok();
-        let eob_bits = encoders.1.code(0x00).map_or(0, |(_, length)| length);
+        let zrl = coders.ac_encoder.code(0xF0).ok();
+        let eob_bits = coders.ac_encoder.code(0x00).map_or(0, |(_, length)| length);
         Self {
             channel,
             step,
             blocks,
             quant,
-            decoders,
-            encoders,
+            coders,
+            in_scan,
             zrl,
             eob_bits,
         }
@@ -118,8 +129,8 @@ impl Layout {
                 (h_max / h, v_max / v),
                 (h, v),
                 Quantizer::new(quant),
-                Some((Decoder::new(dc)?, Decoder::new(ac)?.with_pairs())),
-                (Encoder::new(dc)?, Encoder::new(ac)?),
+                coders(dc, ac)?,
+                true,
             ));
         }
         let mut chroma = None;
@@ -147,8 +158,8 @@ impl Layout {
                     (1, 1),
                     (1, 1),
                     quant,
-                    None,
-                    (Encoder::new(&chroma_dc())?, Encoder::new(&chroma_ac())?),
+                    coders(&chroma_dc(), &chroma_ac())?,
+                    false,
                 ));
             }
         }
@@ -162,7 +173,7 @@ impl Layout {
         }
         let input_blocks = blocks
             .iter()
-            .filter(|b| planes.get(b.0).is_some_and(|p| p.decoders.is_some()))
+            .filter(|b| planes.get(b.0).is_some_and(|p| p.in_scan))
             .count();
         let mcu_px = (8 * h_max, 8 * v_max);
         let (width, height) = (usize::from(headers.width), usize::from(headers.height));

@@ -258,14 +258,19 @@ impl<'a> Jpeg<'a> {
 
     /// The headers of the output, up to the first entropy-coded byte: the file's, or for a
     /// grey frame the file's with a three-component SOF and, before the SOS, the chroma
-    /// quantization and Huffman tables.
+    /// quantization and Huffman tables. With room for the whole output, so that it is
+    /// seldom moved as it grows.
     fn output_headers(&self) -> Vec<u8> {
         let file = self.file;
         let (sof, sos) = (&self.headers.sof, &self.headers.sos);
+        // The file, half as much again for re-encoded blocks (and a grey frame's chroma
+        // scans, under a byte per MCU), and the added headers.
+        let capacity = file.len() + file.len() / 2 + self.layout.grid.total() + 1024;
+        let mut out = Vec::with_capacity(capacity);
         let (Some(chroma), Some(y)) = (self.layout.chroma, self.headers.components.first()) else {
-            return file.get(..sos.end).unwrap_or_default().to_vec();
+            out.extend_from_slice(file.get(..sos.end).unwrap_or_default());
+            return out;
         };
-        let mut out = Vec::with_capacity(file.len() + file.len() / 4);
         out.extend_from_slice(file.get(..sof.start).unwrap_or_default());
         let code = file.get(sof.start + 1).copied().unwrap_or(0xC0);
         let [h1, h0] = self.headers.height.to_be_bytes();

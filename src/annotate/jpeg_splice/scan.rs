@@ -254,7 +254,7 @@ impl Walk<'_> {
             else {
                 return Err(CannotSplice::BadEntropy);
             };
-            let (dc_decoder, ac_decoder) = p.decoders.as_ref().ok_or(CannotSplice::BadEntropy)?;
+            let (dc_decoder, ac_decoder) = p.decoders().ok_or(CannotSplice::BadEntropy)?;
             read_block(reader, dc_decoder, ac_decoder, dc, None)?;
         }
         Ok(())
@@ -269,7 +269,7 @@ impl Walk<'_> {
             else {
                 return Err(CannotSplice::BadEntropy);
             };
-            if let Some((dc_decoder, ac_decoder)) = &p.decoders {
+            if let Some((dc_decoder, ac_decoder)) = p.decoders() {
                 read_block(reader, dc_decoder, ac_decoder, dc, Some(coefficients))?;
             }
         }
@@ -289,7 +289,7 @@ impl Walk<'_> {
             else {
                 return Err(CannotSplice::BadEntropy);
             };
-            let zeros = write_block(scratch, &p.encoders.0, &p.encoders.1, dc, coefficients)?;
+            let zeros = write_block(scratch, p.encoders().0, p.encoders().1, dc, coefficients)?;
             if let (Some(zeros), Some(zrl)) = (zeros, p.zrl) {
                 let room = zeros.saturating_sub(1) / 16;
                 if room > 0 {
@@ -320,8 +320,8 @@ impl Walk<'_> {
             let tables = chroma.tables.0 << 4 | chroma.tables.1;
             let bytes = writer.bytes().ok_or(CannotSplice::BadEntropy)?;
             bytes.extend_from_slice(&[0xFF, 0xDA, 0, 8, 1, id, tables, 0, 63, 0]);
-            let (dc_code, dc_bits) = p.encoders.0.code(0)?;
-            let (eob_code, eob_bits) = p.encoders.1.code(0)?;
+            let (dc_code, dc_bits) = p.encoders().0.code(0)?;
+            let (eob_code, eob_bits) = p.encoders().1.code(0)?;
             let zero = (dc_code << eob_bits | eob_code, dc_bits + eob_bits);
             let mut drawn = self.chroma.iter().peekable();
             for (index, start) in (0..total).step_by(per_interval).enumerate() {
@@ -334,11 +334,11 @@ impl Walk<'_> {
                         if dc == 0 && block.iter().all(|&c| c == 0) {
                             writer.put(zero.0, zero.1);
                         } else {
-                            write_block(writer, &p.encoders.0, &p.encoders.1, &mut dc, block)?;
+                            write_block(writer, p.encoders().0, p.encoders().1, &mut dc, block)?;
                         }
                         mcu += 1;
                     } else if dc != 0 {
-                        write_block(writer, &p.encoders.0, &p.encoders.1, &mut dc, &[0; 64])?;
+                        write_block(writer, p.encoders().0, p.encoders().1, &mut dc, &[0; 64])?;
                         mcu += 1;
                     } else {
                         // Zero blocks up to the next drawn one.
