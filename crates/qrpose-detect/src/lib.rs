@@ -37,6 +37,7 @@ pub mod finders;
 pub mod gray;
 pub mod homography;
 mod merge;
+pub mod pairs;
 pub mod pipeline;
 pub mod profile;
 pub mod region;

@@ -102,6 +102,12 @@ impl Region {
 /// smaller are the same place.
 const SAME_PLACE_OVERLAP: f64 = 0.5;
 
+/// Whether two regions are the same place (overlapping by more than half of the smaller).
+#[must_use]
+pub fn same_place(a: &Region, b: &Region) -> bool {
+    a.overlap(b) > SAME_PLACE_OVERLAP
+}
+
 /// The regions worth more effort: not on a symbol already read (`found`, decoded ones),
 /// and one per place, largest first, at most [`MAX_REGIONS`].
 #[must_use]

@@ -13,6 +13,7 @@
 use super::decode::GrayImage;
 use super::{Backend, Candidate, Detector};
 use crate::contain::contain;
+use crate::pairs::FinderPattern;
 use crate::region::Region;
 use qrpose_core::geometry::frames::PixelPoint;
 use rxing::common::cpp_essentials::concentric_finder::ConcentricPattern;
@@ -48,9 +49,9 @@ impl RxingDetector {
     }
 }
 
-/// What one read found: the symbols it decoded, and the regions of finder-pattern triples
-/// it could not read.
-type Read = (Vec<Candidate>, Vec<Region>);
+/// What one read found: the symbols it decoded, the regions of finder-pattern triples it
+/// could not read, and the finder patterns that no decoded symbol used.
+type Read = (Vec<Candidate>, Vec<Region>, Vec<FinderPattern>);
 
 fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Read {
     let (Ok(w), Ok(h)) = (u32::try_from(image.width()), u32::try_from(image.height())) else {
@@ -69,7 +70,8 @@ fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Read {
 /// rxing's multi-symbol QR read (`QrReader::decode_multiple_with_hints` with try-harder,
 /// QR codes only), step by step through rxing's public parts so that the sampled grid's
 /// size, the module count, is kept: the reader's own results drop it. Triples that do not
-/// sample or decode are returned as [`Region`]s, where `auto` may look again.
+/// sample or decode are returned as [`Region`]s, where `auto` may look again, and so are
+/// the finder patterns that no decoded symbol used (see [`crate::pairs`]).
 fn read<B: Binarizer>(binarizer: &B) -> Read {
     let Ok(binary) = binarizer.get_black_matrix() else {
         return Read::default();
@@ -115,7 +117,15 @@ fn read<B: Binarizer>(binarizer: &B) -> Read {
             backend: Backend::Rxing,
         });
     }
-    (found, unread)
+    let lone = patterns
+        .iter()
+        .filter(|p| !used.contains(p))
+        .map(|p| FinderPattern {
+            centre: PixelPoint::new(f64::from(p.p.x), f64::from(p.p.y)),
+            size_px: f64::from(p.size),
+        })
+        .collect();
+    (found, unread, lone)
 }
 
 /// The region of an unread finder-pattern triple.
@@ -343,6 +353,16 @@ impl RxingDetector {
     /// could not be read (for `auto`'s further passes).
     #[must_use]
     pub fn detect_with_regions(&self, image: &GrayImage) -> (Vec<Candidate>, Vec<Region>) {
+        let (found, regions, _) = self.detect_with_patterns(image);
+        (found, regions)
+    }
+
+    /// [`Self::detect_with_regions`], and the finder patterns that no decoded symbol used.
+    #[must_use]
+    pub fn detect_with_patterns(
+        &self,
+        image: &GrayImage,
+    ) -> (Vec<Candidate>, Vec<Region>, Vec<FinderPattern>) {
         contain(|| detect_unguarded(image, self.global_histogram)).unwrap_or_default()
     }
 }

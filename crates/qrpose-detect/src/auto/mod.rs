@@ -9,12 +9,13 @@
 //!    that did not read becomes a [`Region`].
 //!
 //!    When step 1 found nothing at all (no symbol, no triple), or when steps 1 and 2 read
-//!    two codes or more, one of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per
-//!    module, `balanced` and
+//!    two codes or more, one of at most
+//!    [`sharpened::SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module, `balanced` and
 //!    `thorough` read an unsharp-masked copy of frames up to [`UPSCALE_MAX_SIDE_PX`] once
 //!    more ([`find_sharpened`], after step 2): small codes under blur lose their finder
-//!    patterns' light ring to the binariser; small triples found only there get one
-//!    double-scale sharpened read of their crop.
+//!    patterns' light ring to the binariser; small triples found only there, and the places
+//!    of pairs of lone finder patterns found there ([`crate::pairs`]), get one double-scale
+//!    sharpened read of their crop.
 //! 2. **Look closer** (`balanced`, `thorough`): only where a region is, never on the whole
 //!    frame: a crop around it goes through the other binariser, rqrr, and the image
 //!    variants of [`crate::filters`] (global histogram, denoised, contrast-stretched,
@@ -31,23 +32,24 @@
 #![allow(clippy::cast_possible_truncation)]
 
 use crate::budget::{Effort, PassLog};
-use crate::filters::{downscale_half, sharpen};
+use crate::filters::downscale_half;
 use crate::gray::GrayImage;
-use crate::merge::{any_decoded, reread_undecoded, same_symbol, shortest_side_px};
+use crate::merge::{any_decoded, reread_undecoded, same_symbol};
 use crate::region::{Crop, Region, unread_regions};
 #[cfg(feature = "zxing-cpp")]
 use crate::zxing_cpp;
 use crate::{Backend, Candidate, Detector, auto_order, detector_for, merge_candidates};
 use crate::{rqrr, rxing};
 use qrpose_core::geometry::frames::PixelPoint;
-use std::time::Instant;
 
 mod passes;
+mod sharpened;
 pub use passes::{
     DENOISE_SIGMA_PX, SHARPEN_AMOUNT, SHARPEN_DOUBLE_AMOUNT, SHARPEN_DOUBLE_SIGMA_PX,
     SHARPEN_SIGMA_PX,
 };
-use passes::{decoded, double_sharpened, look_closer, read_crop, rescale, variants};
+use passes::{decoded, look_closer, read_crop, rescale, variants};
+use sharpened::{find_sharpened, reads_small_codes};
 
 /// Images up to this many px on their longer side get a double-scale second pass (the last
 /// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
@@ -165,108 +167,6 @@ fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &mut PassLog)
         );
     }
 }
-
-/// Step 1½ (`balanced`, `thorough`; run after step 2), on frames of at most
-/// [`UPSCALE_MAX_SIDE_PX`], when step 1 found nothing at all (neither a symbol nor a
-/// finder-pattern triple) or when two codes or more were read, one of at most
-/// [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module ([`reads_small_codes`]): rxing on an unsharp-masked copy
-/// ([`SHARPEN_SIGMA_PX`], [`SHARPEN_AMOUNT`]). Small codes under blur (about 2-3 px per
-/// module, blur σ ≈ 1 px) lose the light ring of their finder patterns to the binariser, so
-/// step 1 sees no triple and step 2 no region; sharpening gives the ring back. The triples
-/// it finds but cannot read are not made regions for step 2 (on textured frames without a
-/// code the sharpened noise yields spurious triples, whose crops would take step 2's passes
-/// up to the deadline): the small ones among them get one double-scale sharpened read of
-/// their crop, at most [`SHARPENED_REGIONS_MAX`] of them. A frame with no finder-like
-/// structure pays the sharpened read once.
-fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
-    let image = finds.image;
-    if image.width().max(image.height()) > UPSCALE_MAX_SIDE_PX || !log.may_continue() {
-        return;
-    }
-    let started = Instant::now();
-    let Some(sharp) = sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT) else {
-        return;
-    };
-    let (read, regions) = log.run_since(
-        started,
-        "rxing sharpened",
-        |r: &(Vec<Candidate>, Vec<Region>)| decoded(&r.0),
-        || rxing::RxingDetector::hybrid().detect_with_regions(&sharp),
-    );
-    finds.add(read);
-    drop(sharp);
-    let small = regions
-        .into_iter()
-        .filter(|r| (r.hi_u - r.lo_u).max(r.hi_v - r.lo_v) <= SHARPENED_REGION_MAX_SIDE_PX);
-    for (k, region) in unread_regions(small.collect(), &finds.found)
-        .iter()
-        .take(SHARPENED_REGIONS_MAX)
-        .enumerate()
-    {
-        let Some(crop) = Crop::of_region(image, region) else {
-            continue;
-        };
-        let Some(pixels) = crop.image.as_ref() else {
-            continue;
-        };
-        let Some(pass) = double_sharpened(pixels, detector_for(Backend::Rxing).ok()) else {
-            continue;
-        };
-        let Some(read) = pass.run(
-            &format!("sharpened region {k} "),
-            log,
-            |d, variant, scale| read_crop(&crop, d, variant, scale),
-        ) else {
-            return;
-        };
-        finds.add(read);
-    }
-}
-
-/// A frame in which a code of at most this many px per module was read (its shortest side
-/// over its module count) also gets the sharpened read of [`find_sharpened`]. That read is
-/// for codes of 2-3 px per module, whose finder rings blur away; a code of the same printed
-/// size twice as far away as one read at 6 px per module is at 3, so a frame that shows
-/// codes at this scale is one where such codes are likely, next to the ones read (a shelf
-/// or a wall of labels at several distances). Frames of larger codes only do not pay for
-/// it, and frames with no code pay nothing more than before. Measured 2026-11-24: on the
-/// rendered multi-code frames of issue 12 (2-6 codes, 1280 × 720) reading every frame's
-/// sharpened copy doubled `balanced`'s time and read 14 more codes (10 of ≥ 40 px); this
-/// trigger reads 13 of them (all 10), while on the BoofCV development photos (one or a few
-/// codes, mostly at more px per module) 34 more of 272 photos pay the read (68 with those
-/// where nothing was found), where reading every frame ≤ 1920 px meant 150.
-pub const SHARPENED_TRIGGER_MAX_PX_PER_MODULE: f64 = 6.0;
-
-/// The small-code trigger of [`find_sharpened`] also wants this many codes read: a frame
-/// showing one code is a robot camera's usual frame, whose latency is that of the first
-/// reads (the sharpened read of a 1280 × 720 frame, 5 ms, would more than double it:
-/// `docs/detection.md`, Speed), while two or more codes make a shelf or a wall of labels,
-/// where codes the first reads miss are likely.
-pub const SHARPENED_TRIGGER_MIN_CODES: usize = 2;
-
-/// Whether `found` holds at least [`SHARPENED_TRIGGER_MIN_CODES`] decoded codes, one of
-/// them of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module. A code whose
-/// module count is unknown counts as a version 1 code (21 modules, the fewest, so the most
-/// px per module: the trigger errs towards not firing).
-fn reads_small_codes(found: &[Candidate]) -> bool {
-    let decoded = || found.iter().filter(|c| c.payload.is_some());
-    decoded().count() >= SHARPENED_TRIGGER_MIN_CODES
-        && decoded().any(|c| {
-            let modules = c.module_count.unwrap_or(MIN_MODULE_COUNT) as f64;
-            shortest_side_px(&c.corners_px) <= SHARPENED_TRIGGER_MAX_PX_PER_MODULE * modules
-        })
-}
-
-/// Modules per side of the smallest QR code (version 1).
-const MIN_MODULE_COUNT: usize = 21;
-
-/// Finder-pattern triples found only on the sharpened copy ([`find_sharpened`]) get one
-/// more look, a double-scale sharpened read of their crop, when their box is at most this
-/// long (px): the pass is there for small codes, and the bound keeps spurious triples in
-/// the texture of a frame without a code from costing more than a few small reads.
-pub const SHARPENED_REGION_MAX_SIDE_PX: f64 = 160.0;
-/// At most this many such triples get that look.
-pub const SHARPENED_REGIONS_MAX: usize = 4;
 
 /// The longest side of the smallest level of step 1, px.
 pub const SMALL_LEVEL_MAX_SIDE_PX: usize = 800;

@@ -81,6 +81,16 @@ impl<'a> SecondPass<'a> {
     }
 }
 
+/// The double-scale pass of `detector` on `image`; `None` without a detector.
+pub(super) fn double(
+    image: &GrayImage,
+    detector: Option<Box<dyn Detector>>,
+) -> Option<SecondPass<'_>> {
+    SecondPass::new("double", detector, 0.5, move || {
+        upscale_double(image).map(Cow::Owned)
+    })
+}
+
 /// The double-scale sharpened pass of `detector` on `image` (the last of
 /// [`second_passes`]); `None` without a detector.
 pub(super) fn double_sharpened(
@@ -166,9 +176,7 @@ pub(super) fn second_passes(image: &GrayImage, best: Backend) -> Vec<SecondPass<
         owned(sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT))
     }));
     if small {
-        passes.push(SecondPass::new("double", local(), 0.5, move || {
-            owned(upscale_double(image))
-        }));
+        passes.push(double(image, local()));
         passes.push(double_sharpened(image, local()));
     }
     passes.into_iter().flatten().collect()

@@ -1,0 +1,162 @@
+//! Finder-pattern pairs: where a small code may be when a read saw only two of its three
+//! finder patterns.
+//!
+//! Under blur a small code (2-3 px per module) often shows the binariser two finder patterns
+//! and not the third, so no triple forms and no [`Region`] is made. Two lone patterns of
+//! about the same size, as far apart as two finder patterns of one small code, fix where
+//! that code can be: the third finder lies on either side of the line through them
+//! (adjacent finders) or the two are opposite corners (diagonal finders). [`pair_regions`]
+//! gives one region per such pair that covers every case, for `auto` to read once more on
+//! a crop, so that the extra work lands where a code may be and nowhere else.
+
+use crate::Candidate;
+use crate::region::Region;
+use qrpose_core::geometry::frames::PixelPoint;
+
+/// A finder pattern that a read found but used in no decoded symbol.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FinderPattern {
+    /// Its centre, px.
+    pub centre: PixelPoint,
+    /// Its width across, px (7 modules).
+    pub size_px: f64,
+}
+
+/// Two finder patterns of one small code differ in size by at most this factor (tilt, and a
+/// binariser that erodes one more than the other).
+pub const PAIR_MAX_SIZE_RATIO: f64 = 1.25;
+/// Closest pair, in finder-pattern widths: adjacent finders of a version 1 code are 2 widths
+/// apart (14 modules), and tilt shortens that.
+pub const PAIR_MIN_SPACING: f64 = 1.5;
+/// Farthest pair, in finder-pattern widths: adjacent finders of a version 4 code (33
+/// modules) are 26 / 7 ≈ 3.7 widths apart, diagonal ones of a version 2 code 18 √2 / 7 ≈
+/// 3.6. The codes this is for are small and low-version (a code that loses its finder rings
+/// to the blur has 2-3 px per module, so a higher version would be a large code); on the
+/// sharpened noise of frames without a code, spurious pairs are mostly farther apart
+/// (measured on the BoofCV no-code crops, docs/detection.md).
+pub const PAIR_MAX_SPACING: f64 = 4.0;
+/// Farthest pair, px: the pair read is for small codes (2-3 px per module, versions 1-4:
+/// adjacent finders 34-78 px apart), whose crops are cheap; a region is about three times
+/// this long.
+pub const PAIR_MAX_DISTANCE_PX: f64 = 80.0;
+
+/// Whether `a` and `b` could be two finder patterns of one small code.
+fn plausible_pair(a: &FinderPattern, b: &FinderPattern) -> bool {
+    let (small, large) = (a.size_px.min(b.size_px), a.size_px.max(b.size_px));
+    let distance = (a.centre.u() - b.centre.u()).hypot(a.centre.v() - b.centre.v());
+    let size = 0.5 * (small + large);
+    small > 0.0
+        && large <= PAIR_MAX_SIZE_RATIO * small
+        && distance >= PAIR_MIN_SPACING * size
+        && distance <= PAIR_MAX_SPACING * size
+        && distance <= PAIR_MAX_DISTANCE_PX
+}
+
+/// The region of a pair: the box of both centres moved by their distance to either side of
+/// the line through them (where the third finder and the fourth corner are when the two are
+/// adjacent; diagonal ones have the other two in between), widened by one finder pattern.
+fn pair_region(a: &FinderPattern, b: &FinderPattern) -> Option<Region> {
+    let (du, dv) = (b.centre.u() - a.centre.u(), b.centre.v() - a.centre.v());
+    // The normal to the line, as long as the pair's distance.
+    let (nu, nv) = (-dv, du);
+    let points: Vec<PixelPoint> = [a.centre, b.centre]
+        .iter()
+        .flat_map(|p| [1.0, -1.0].map(|side| PixelPoint::new(p.u() + side * nu, p.v() + side * nv)))
+        .collect();
+    Region::around(&points, a.size_px.max(b.size_px))
+}
+
+/// Whether `p` lies inside the box of a decoded symbol of `found` (a finder pattern of a
+/// code already read).
+fn on_read_symbol(p: &PixelPoint, found: &[Candidate]) -> bool {
+    found
+        .iter()
+        .filter(|c| c.payload.is_some())
+        .filter_map(|c| Region::around(&c.corners_px, 0.0))
+        .any(|r| (r.lo_u..=r.hi_u).contains(&p.u()) && (r.lo_v..=r.hi_v).contains(&p.v()))
+}
+
+/// The regions of every plausible pair among `patterns` whose patterns are on no symbol of
+/// `found` already read, in the order of the patterns.
+#[must_use]
+pub fn pair_regions(patterns: &[FinderPattern], found: &[Candidate]) -> Vec<Region> {
+    let lone: Vec<&FinderPattern> = patterns
+        .iter()
+        .filter(|p| !on_read_symbol(&p.centre, found))
+        .collect();
+    let mut regions = Vec::new();
+    for (k, a) in lone.iter().enumerate() {
+        for b in lone.iter().skip(k + 1) {
+            if plausible_pair(a, b) {
+                regions.extend(pair_region(a, b));
+            }
+        }
+    }
+    regions
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Backend;
+
+    fn pattern(u: f64, v: f64, size_px: f64) -> FinderPattern {
+        FinderPattern {
+            centre: PixelPoint::new(u, v),
+            size_px,
+        }
+    }
+
+    fn contains(r: &Region, u: f64, v: f64) -> bool {
+        (r.lo_u..=r.hi_u).contains(&u) && (r.lo_v..=r.hi_v).contains(&v)
+    }
+
+    #[test]
+    fn a_pair_region_covers_the_code_on_either_side_and_between_diagonal_finders() {
+        // A 25-module code of 2.4 px modules: finders 18 modules (43 px) apart, 17 px wide.
+        let (a, b) = (pattern(200.0, 100.0, 17.0), pattern(243.0, 100.0, 17.0));
+        let regions = pair_regions(&[a, b], &[]);
+        assert_eq!(regions.len(), 1);
+        let r = &regions[0];
+        // The symbol below (third finder at (200, 143)) or above (at (200, 57)), corners
+        // 3.5 modules (8.4 px) beyond the finder centres.
+        for (u, v) in [(191.6, 151.4), (251.4, 151.4), (191.6, 48.6), (251.4, 48.6)] {
+            assert!(contains(r, u, v), "({u}, {v}) outside {r:?}");
+        }
+        // Diagonal finders: the other two between them.
+        let diagonal = pair_regions(&[a, pattern(243.0, 143.0, 17.0)], &[]);
+        assert!(contains(&diagonal[0], 243.0, 100.0) && contains(&diagonal[0], 200.0, 143.0));
+    }
+
+    #[test]
+    fn implausible_pairs_make_no_region() {
+        let a = pattern(200.0, 100.0, 17.0);
+        for (a, b) in [
+            (a, pattern(243.0, 100.0, 23.0)), // sizes too different
+            (a, pattern(210.0, 100.0, 17.0)), // overlapping
+            (a, pattern(280.0, 100.0, 17.0)), // too many modules apart for a small code
+            (pattern(200.0, 100.0, 24.0), pattern(290.0, 100.0, 24.0)), // too far, px
+            (a, pattern(243.0, 100.0, 0.0)),  // no size
+        ] {
+            assert!(pair_regions(&[a, b], &[]).is_empty(), "{a:?} {b:?}");
+        }
+    }
+
+    #[test]
+    fn patterns_on_a_read_symbol_pair_with_nothing() {
+        let read = Candidate {
+            corners_px: [
+                PixelPoint::new(180.0, 80.0),
+                PixelPoint::new(220.0, 80.0),
+                PixelPoint::new(220.0, 120.0),
+                PixelPoint::new(180.0, 120.0),
+            ],
+            payload: Some(b"x".to_vec()),
+            text: Some("x".to_owned()),
+            module_count: Some(21),
+            backend: Backend::Rxing,
+        };
+        let (a, b) = (pattern(200.0, 100.0, 17.0), pattern(243.0, 100.0, 17.0));
+        assert!(pair_regions(&[a, b], &[read]).is_empty());
+    }
+}
