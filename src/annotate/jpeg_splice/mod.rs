@@ -20,12 +20,13 @@
 //!    tables, and so is the MCU after each run of drawn MCUs (its DC differences change
 //!    with its predecessor's DC; its coefficients do not).
 //! 4. The output is the file's bytes up to the byte holding the first changed bit, the
-//!    re-encoded MCUs with the MCUs between them copied bit for bit, then the rest of the
-//!    restart interval (the whole scan without restart markers): byte for byte when ZRL
-//!    codes (16 zeros each, put before end-of-block codes: no coefficient changes) make
-//!    the new bits a whole number of bytes longer or shorter than the old, else copied with
-//!    a bit shift (stuffing undone on reading and done again on writing), padded with 1
-//!    bits and followed by its RST marker. Intervals without a drawn MCU are copied byte
+//!    re-encoded MCUs with the MCUs between them, then the rest of the restart interval
+//!    (the whole scan without restart markers). A run of 8 or more MCUs between re-encoded
+//!    ones, and the rest of the interval, keep their bytes when ZRL codes (16 zeros each,
+//!    put before end-of-block codes: no coefficient changes) make the new bits before them
+//!    a whole number of bytes longer or shorter than the old; otherwise they are copied
+//!    with a bit shift (stuffing undone on reading and done again on writing). The
+//!    interval is padded with 1 bits and followed by its RST marker. Intervals without a drawn MCU are copied byte
 //!    for byte; the file's trailer (EOI, anything after it) ends the output, and an EOI
 //!    when the file had none. All headers
 //!    (APPn with EXIF and ICC, DQT, DHT, SOF, DRI, SOS) stay byte-identical.
@@ -54,6 +55,7 @@
 //! decode. Nothing here indexes untrusted bytes in a way that can panic: a malformed file
 //! is refused, never trusted.
 
+mod align;
 mod block;
 mod coding;
 mod draw;
@@ -149,6 +151,9 @@ pub struct Spliced {
     pub aligned_tails: usize,
     /// Restart intervals whose rest was copied shifted bit by bit.
     pub shifted_tails: usize,
+    /// Runs of MCUs between re-encoded ones that kept their bytes (ZRL codes in the
+    /// re-encoded MCUs before each align it, as for the rest of an interval).
+    pub aligned_runs: usize,
 }
 
 impl<'a> Jpeg<'a> {
@@ -221,6 +226,7 @@ impl<'a> Jpeg<'a> {
                 verbatim_scan_bytes: self.file.len().saturating_sub(self.headers.sos.end),
                 aligned_tails: 0,
                 shifted_tails: 0,
+                aligned_runs: 0,
             });
         }
         let restarts = self.headers.restart_interval > 0;
@@ -253,6 +259,7 @@ impl<'a> Jpeg<'a> {
             verbatim_scan_bytes: report.verbatim_prefix.saturating_sub(headers_len),
             aligned_tails: report.aligned_tails,
             shifted_tails: report.shifted_tails,
+            aligned_runs: report.aligned_runs,
         })
     }
 

@@ -1,11 +1,12 @@
 //! The scan, interval by interval: restart intervals without a drawn MCU are copied byte for
 //! byte; in the others the MCUs before the first drawn one keep their bytes, the drawn MCUs
-//! and the one after each run of them are encoded anew, and the rest of the interval is
-//! copied byte for byte too when ZRL codes can make the new bits a whole number of bytes
-//! longer or shorter, else shifted bit by bit. A grey frame's added chroma follows in two
-//! scans of its own.
+//! and the one after each run of them are encoded anew, and runs of 8 MCUs or more between
+//! them and the rest of the interval are copied byte for byte too when ZRL codes can make
+//! the new bits before them a whole number of bytes longer or shorter ([`super::align`]),
+//! else shifted bit by bit. A grey frame's added chroma follows in two scans of its own.
 
 use super::CannotSplice;
+use super::align::{ALIGNED_RUN, Segment, Slot, plan_zrls, write_aligned_run, write_with_zrls};
 use super::block::{Coefficients, Transform};
 use super::coding::{read_block, write_block};
 use super::draw::{Drawing, Touched};
@@ -24,17 +25,8 @@ pub struct Rewritten {
     pub aligned_tails: usize,
     /// Restart intervals whose rest was copied shifted bit by bit.
     pub shifted_tails: usize,
-}
-
-/// Where ZRL codes may go in re-encoded bits: before the end-of-block code at bit `at`.
-#[derive(Debug, Clone, Copy)]
-struct Slot {
-    at: usize,
-    /// How many ZRLs fit: each stands for 16 of the block's trailing zeros, and the
-    /// end-of-block code must still follow (at least one zero left).
-    room: u32,
-    /// The ZRL code, (code, length).
-    zrl: (u32, u32),
+    /// Runs of MCUs between re-encoded ones whose bytes were kept (ZRLs align them).
+    pub aligned_runs: usize,
 }
 
 /// The walk's state.
@@ -173,17 +165,22 @@ impl Walk<'_> {
         // The drawn MCUs, the one after each run of them, and those between, into scratch.
         let last_touched = here.last().map_or(first, |t| t.mcu);
         let last = (last_touched + 1).min(mcus.end - 1);
-        let mut scratch = BitWriter::scratch(interval.data.end.saturating_sub(start / 8) + 1024);
-        let mut slots = Vec::new();
+        let capacity = interval.data.end.saturating_sub(start / 8) + 1024;
+        let mut segment = Segment {
+            start,
+            scratch: BitWriter::scratch(capacity),
+            slots: Vec::new(),
+        };
         let mut pending = here.iter().peekable();
         let mut previous_touched = false;
         // Where the run of MCUs copied as they are began.
         let mut copy_from: Option<usize> = None;
-        for mcu in first..=last {
+        let mut mcu = first;
+        while mcu <= last {
             let drawn = pending.next_if(|t| t.mcu == mcu);
             if drawn.is_some() || previous_touched {
                 if let Some(from) = copy_from.take() {
-                    scratch.copy_bits(data, from, reader.position());
+                    segment.scratch.copy_bits(data, from, reader.position());
                 }
                 self.decode_mcu(&mut reader)?;
                 if let Some(&t) = drawn {
@@ -200,8 +197,30 @@ impl Walk<'_> {
                         self.chroma.push((mcu, [*cb, *cr]));
                     }
                 }
-                self.encode_mcu(&mut scratch, &mut slots)?;
+                self.encode_mcu(&mut segment.scratch, &mut segment.slots)?;
                 self.report.reencoded_mcus += 1;
+            } else if let Some(next) = pending
+                .peek()
+                .map(|t| t.mcu)
+                .filter(|&next| copy_from.is_none() && self.align && next >= mcu + ALIGNED_RUN)
+            {
+                // A long run of MCUs kept as they are: its bytes, when ZRLs can align it.
+                let run_start = reader.position();
+                for _ in mcu..next {
+                    self.skip_mcu(&mut reader)?;
+                }
+                check(&reader, end_bits)?;
+                self.write_dc = self.read_dc;
+                let run = run_start..reader.position();
+                if write_aligned_run(writer, (file, entropy), interval, &mut segment, run.clone())?
+                {
+                    self.report.aligned_runs += 1;
+                } else {
+                    segment.scratch.copy_bits(data, run.start, run.end);
+                }
+                previous_touched = false;
+                mcu = next;
+                continue;
             } else {
                 copy_from.get_or_insert(reader.position());
                 self.skip_mcu(&mut reader)?;
@@ -209,15 +228,21 @@ impl Walk<'_> {
             }
             previous_touched = drawn.is_some();
             check(&reader, end_bits)?;
+            mcu += 1;
         }
         let end = reader.position();
         if let Some(from) = copy_from {
-            scratch.copy_bits(data, from, end);
+            segment.scratch.copy_bits(data, from, end);
         }
+        let Segment {
+            start: segment_start,
+            scratch,
+            slots,
+        } = segment;
         let (bits, length) = scratch.into_bits();
         if self.align && last + 1 < mcus.end {
             // Same length modulo 8, the rest of the interval keeps its bytes.
-            let target = (end - start) % 8 + 8 - length % 8;
+            let target = (end - segment_start) % 8 + 8 - length % 8;
             if let Some(zrls) = plan_zrls(&slots, u32::try_from(target % 8).unwrap_or(0)) {
                 write_with_zrls(writer, &bits, length, &slots, &zrls);
                 writer.copy_bits(data, end, end.div_ceil(8) * 8);
@@ -364,74 +389,4 @@ fn check(reader: &BitReader<'_>, end_bits: usize) -> Result<(), CannotSplice> {
         return Err(CannotSplice::BadEntropy);
     }
     Ok(())
-}
-
-/// How many ZRLs to put in each slot (by index) so that they add `target` bits modulo 8,
-/// as few slots' worth as it takes; `None` when the slots cannot.
-fn plan_zrls(slots: &[Slot], target: u32) -> Option<Vec<(usize, u32)>> {
-    if target == 0 {
-        return Some(Vec::new());
-    }
-    // One entry per ZRL that fits (seven per slot are all any residue needs).
-    let entries: Vec<(usize, u32)> = slots
-        .iter()
-        .enumerate()
-        .flat_map(|(i, s)| std::iter::repeat_n((i, s.zrl.1 % 8), s.room.min(7) as usize))
-        .take(64)
-        .collect();
-    // reached[j] bit r: whether the first j entries can add r modulo 8.
-    let mut reached: Vec<u8> = vec![1];
-    let target = u8::try_from(target).ok()?;
-    let can = |set: u8, r: u8| set >> r & 1 == 1;
-    for &(_, bits) in &entries {
-        let previous = *reached.last()?;
-        // Adding `bits` rotates the set of residues.
-        let next = previous | previous.rotate_left(bits);
-        reached.push(next);
-        if can(next, target) {
-            break;
-        }
-    }
-    if !can(*reached.last()?, target) {
-        return None;
-    }
-    // Back from the end: take an entry when the residue was not reachable without it.
-    let mut counts: Vec<(usize, u32)> = Vec::new();
-    let mut r = target;
-    for j in (0..reached.len() - 1).rev() {
-        if can(*reached.get(j)?, r) {
-            continue;
-        }
-        let (slot, bits) = *entries.get(j)?;
-        r = (r + 8 - u8::try_from(bits).ok()?) % 8;
-        match counts.last_mut() {
-            Some(last) if last.0 == slot => last.1 += 1,
-            _ => counts.push((slot, 1)),
-        }
-    }
-    counts.reverse();
-    Some(counts)
-}
-
-/// Copies `length` bits of `bits` into `writer`, with `zrls` (slot index, count) ZRL codes
-/// before the end-of-block codes of those slots.
-fn write_with_zrls(
-    writer: &mut BitWriter,
-    bits: &[u8],
-    length: usize,
-    slots: &[Slot],
-    zrls: &[(usize, u32)],
-) {
-    let mut at = 0;
-    for &(slot, count) in zrls {
-        let Some(s) = slots.get(slot) else {
-            continue;
-        };
-        writer.copy_bits(bits, at, s.at);
-        for _ in 0..count {
-            writer.put(s.zrl.0, s.zrl.1);
-        }
-        at = s.at;
-    }
-    writer.copy_bits(bits, at, length);
 }

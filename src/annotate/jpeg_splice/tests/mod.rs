@@ -5,6 +5,7 @@
 //! whole-frame path, and broken data never panics.
 
 mod fallback;
+mod runs;
 
 use super::*;
 use crate::annotate::overlay::{
