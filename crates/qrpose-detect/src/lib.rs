@@ -34,6 +34,7 @@ pub mod corners;
 pub mod decode;
 pub mod filters;
 pub mod finders;
+pub mod global_binarizer;
 pub mod gray;
 pub mod homography;
 mod merge;

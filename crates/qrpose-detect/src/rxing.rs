@@ -8,11 +8,13 @@
 //! The hybrid binariser is rxing's algorithm reimplemented ([`LocalBinarizer`]): the same
 //! bits (a test compares them), faster: rxing sets the matrix one bit at a time, which was
 //! the largest share of its read of a 1280 × 720 frame (3.3 ms with rxing's binariser,
-//! about 1.6 ms with this one, one core).
+//! about 1.6 ms with this one, one core). The global-histogram binariser is rxing's too,
+//! rewritten the same way ([`crate::global_binarizer`]).
 
 use super::decode::GrayImage;
 use super::{Backend, Candidate, Detector};
 use crate::contain::contain;
+use crate::global_binarizer::GlobalBinarizer;
 use crate::pairs::FinderPattern;
 use crate::region::Region;
 use qrpose_core::geometry::frames::PixelPoint;
@@ -61,7 +63,7 @@ fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Read {
         return Read::default();
     };
     if global_histogram {
-        read(&GlobalHistogramBinarizer::new(source))
+        read(&GlobalBinarizer::new(source))
     } else {
         read(&LocalBinarizer::new(source))
     }
@@ -140,7 +142,7 @@ const BLOCK_PX: usize = 8;
 /// Blocks with at most this grey-level range get a threshold from their neighbours.
 const MIN_DYNAMIC_RANGE: u8 = 24;
 /// Bits per word of rxing's bit arrays.
-const WORD_BITS: usize = usize::BITS as usize;
+pub(crate) const WORD_BITS: usize = usize::BITS as usize;
 
 /// rxing's `HybridBinarizer` (ZXing's local block thresholding), bit for bit: a black point
 /// per 8 × 8 block, each block thresholded at the mean black point of the 5 × 5 blocks
@@ -280,7 +282,7 @@ fn block_row_thresholds(lum: &[u8], width: usize, height: usize) -> Vec<u8> {
 }
 
 /// A word of 0/1 bytes as bits (bit k = byte k), eight bytes per multiplication.
-fn pack_flags(flags: &[u8]) -> usize {
+pub(crate) fn pack_flags(flags: &[u8]) -> usize {
     flags
         .chunks_exact(8)
         .enumerate()
