@@ -19,14 +19,12 @@ fn extend(bits: u32, size: u32) -> i32 {
     }
 }
 
-/// Reads one block; its DC updates `dc`. With `out`, stores its coefficients (zigzag order).
-#[inline]
-pub fn read_block(
+/// Reads a block's DC difference, which updates `dc`.
+#[inline(always)]
+fn read_dc(
     reader: &mut BitReader<'_>,
     dc_decoder: &Decoder,
-    ac_decoder: &Decoder,
     dc: &mut i32,
-    out: Option<&mut Coefficients>,
 ) -> Result<(), CannotSplice> {
     let ahead = reader.peek_u32();
     let (size, length) = dc_decoder.lookup(ahead)?;
@@ -36,9 +34,31 @@ pub fn read_block(
     }
     *dc = dc.wrapping_add(extend(value_bits(ahead, length, size), size));
     reader.consume(length + size);
-    let Some(out) = out else {
-        return skip_ac(reader, ac_decoder);
-    };
+    Ok(())
+}
+
+/// Reads past one block; its DC updates `dc`. Inlined into the loop over an MCU's blocks:
+/// most blocks of a splice are only read past.
+#[inline(always)]
+pub fn skip_block(
+    reader: &mut BitReader<'_>,
+    dc_decoder: &Decoder,
+    ac_decoder: &Decoder,
+    dc: &mut i32,
+) -> Result<(), CannotSplice> {
+    read_dc(reader, dc_decoder, dc)?;
+    skip_ac(reader, ac_decoder)
+}
+
+/// Reads one block into `out` (zigzag order); its DC updates `dc`.
+pub fn read_block(
+    reader: &mut BitReader<'_>,
+    dc_decoder: &Decoder,
+    ac_decoder: &Decoder,
+    dc: &mut i32,
+    out: &mut Coefficients,
+) -> Result<(), CannotSplice> {
+    read_dc(reader, dc_decoder, dc)?;
     out[0] = *dc;
     let mut k = 1_usize;
     while k < 64 {
@@ -71,7 +91,7 @@ pub fn read_block(
 }
 
 /// Reads past a block's AC coefficients.
-#[inline]
+#[inline(always)]
 fn skip_ac(outer: &mut BitReader<'_>, ac_decoder: &Decoder) -> Result<(), CannotSplice> {
     // A local copy keeps the reader's state in registers.
     let mut local = *outer;
@@ -82,12 +102,25 @@ fn skip_ac(outer: &mut BitReader<'_>, ac_decoder: &Decoder) -> Result<(), Cannot
         let ahead = reader.peek_u32();
         if let Some([first, both, advance, total]) = ac_decoder.skip_ac_pair(ahead) {
             // Both codes when the first leaves the block unfinished.
-            if k + u32::from(advance) < 64 {
-                reader.consume(u32::from(both));
-                k += u32::from(total);
-            } else {
+            if k + u32::from(advance) >= 64 {
                 reader.consume(u32::from(first));
                 k += u32::from(advance);
+                continue;
+            }
+            reader.consume(u32::from(both));
+            k += u32::from(total);
+            // Two more from the same 32 bits: at most 12 were taken, and a pair's codes and
+            // values fit in the next 12.
+            if k < 64
+                && let Some([first, both, advance, total]) = ac_decoder.skip_ac_pair(ahead << both)
+            {
+                if k + u32::from(advance) < 64 {
+                    reader.consume(u32::from(both));
+                    k += u32::from(total);
+                } else {
+                    reader.consume(u32::from(first));
+                    k += u32::from(advance);
+                }
             }
             continue;
         }

@@ -8,7 +8,7 @@
 use super::CannotSplice;
 use super::align::{ALIGNED_RUN, Segment, Slot, plan_zrls, write_aligned_run, write_with_zrls};
 use super::block::{Coefficients, Transform};
-use super::coding::{read_block, write_block};
+use super::coding::{read_block, skip_block, write_block};
 use super::draw::{Drawing, Touched};
 use super::entropy::{BitReader, BitWriter, Entropy, Interval};
 use super::layout::{Chroma, Layout};
@@ -280,7 +280,7 @@ impl Walk<'_> {
                 return Err(CannotSplice::BadEntropy);
             };
             let (dc_decoder, ac_decoder) = p.decoders().ok_or(CannotSplice::BadEntropy)?;
-            read_block(reader, dc_decoder, ac_decoder, dc, None)?;
+            skip_block(reader, dc_decoder, ac_decoder, dc)?;
         }
         Ok(())
     }
@@ -295,7 +295,7 @@ impl Walk<'_> {
                 return Err(CannotSplice::BadEntropy);
             };
             if let Some((dc_decoder, ac_decoder)) = p.decoders() {
-                read_block(reader, dc_decoder, ac_decoder, dc, Some(coefficients))?;
+                read_block(reader, dc_decoder, ac_decoder, dc, coefficients)?;
             }
         }
         Ok(())
