@@ -222,7 +222,12 @@ fn encode_block(
         return Err(CannotSplice::BadEntropy);
     }
     let (code, length) = dc_encoder.code(u8::try_from(size).unwrap_or(0))?;
-    bits.put(out, code << size | value_bits, length + size, stuffing);
+    bits.put_code(
+        out,
+        u64::from(code << size | value_bits),
+        length + size,
+        stuffing,
+    );
     // Which AC coefficients are not zero.
     let mut nonzero = 0_u64;
     for (k, &value) in coefficients.iter().enumerate().skip(1) {
@@ -235,7 +240,7 @@ fn encode_block(
         let mut run = k - next;
         while run > 15 {
             let (code, length) = ac_encoder.code(0xF0)?;
-            bits.put(out, code, length, stuffing);
+            bits.put_code(out, u64::from(code), length, stuffing);
             run -= 16;
         }
         let (size, value_bits) = magnitude(coefficients[(k & 63) as usize]);
@@ -244,12 +249,17 @@ fn encode_block(
         }
         let symbol = u8::try_from(run << 4 | size).map_err(|_| CannotSplice::BadEntropy)?;
         let (code, length) = ac_encoder.code(symbol)?;
-        bits.put(out, code << size | value_bits, length + size, stuffing);
+        bits.put_code(
+            out,
+            u64::from(code << size | value_bits),
+            length + size,
+            stuffing,
+        );
         next = k + 1;
     }
     if next < 64 {
         let (code, length) = ac_encoder.code(0x00)?;
-        bits.put(out, code, length, stuffing);
+        bits.put_code(out, u64::from(code), length, stuffing);
         return Ok(Some(64 - next));
     }
     Ok(None)

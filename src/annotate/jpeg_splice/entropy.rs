@@ -227,7 +227,14 @@ impl Pending {
             return;
         }
         let mask = u64::MAX >> (64 - n);
-        self.bits = (self.bits << n) | (u64::from(value) & mask);
+        self.put_code(out, u64::from(value) & mask, n, stuffing);
+    }
+
+    /// [`Self::put`] of a Huffman code (and the value bits after it) of `n` bits, 1-32,
+    /// nothing above them set: no mask, no test for zero bits.
+    #[inline(always)]
+    pub fn put_code(&mut self, out: &mut Vec<u8>, code: u64, n: u32, stuffing: bool) {
+        self.bits = (self.bits << (n & 63)) | code;
         self.count += n;
         if self.count >= 32 {
             self.count -= 32;
@@ -240,7 +247,10 @@ impl Pending {
 /// Appends four bytes, a 0x00 after each 0xFF byte when `stuffing`.
 #[inline]
 fn write_word(out: &mut Vec<u8>, word: [u8; 4], stuffing: bool) {
-    if stuffing && word.contains(&0xFF) {
+    // A zero byte of !w is a 0xFF byte of w.
+    let w = u32::from_be_bytes(word);
+    let has_ff = (!w).wrapping_sub(0x0101_0101) & w & 0x8080_8080 != 0;
+    if stuffing && has_ff {
         for byte in word {
             out.push(byte);
             if byte == 0xFF {

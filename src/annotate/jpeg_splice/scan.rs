@@ -191,8 +191,11 @@ impl Walk<'_> {
                         &self.transform,
                         &mut self.coefficients,
                     );
+                    // A grey frame's added chroma, where the drawing is not neutral (a
+                    // zero block is what the chroma scans write anyway).
                     if let (Some(_), [_, cb, cr]) =
                         (self.layout.chroma, self.coefficients.as_slice())
+                        && cb.iter().chain(cr).any(|&c| c != 0)
                     {
                         self.chroma.push((mcu, [*cb, *cr]));
                     }
