@@ -1,13 +1,13 @@
-//! rxing's global-histogram binariser, bit for bit, faster ([`GlobalBinarizer`]): one black
+//! rxing's global-histogram binariser, bit for bit, faster ([`global_binarizer`]): one black
 //! point for the whole image from the histogram of four sampled rows, as rxing's
 //! `GlobalHistogramBinarizer`, but the image is thresholded a row at a time and packed a
 //! word at a time, where rxing sets the matrix one bit at a time (the larger part of its
 //! time on `auto`'s half-scale and crop reads). A test compares the bits with rxing's.
 
+use crate::binarizer::Precomputed;
 use crate::rxing::{WORD_BITS, pack_flags};
-use rxing::common::{BitArray, BitMatrix, GlobalHistogramBinarizer, LineOrientation};
-use rxing::{Binarizer, LuminanceSource};
-use std::borrow::Cow;
+use rxing::LuminanceSource;
+use rxing::common::{BitArray, BitMatrix};
 
 /// Bits per histogram bucket index (32 buckets), as in rxing.
 const LUMINANCE_BITS: usize = 5;
@@ -16,23 +16,9 @@ const LUMINANCE_SHIFT: usize = 8 - LUMINANCE_BITS;
 /// Histogram buckets.
 const LUMINANCE_BUCKETS: usize = 1 << LUMINANCE_BITS;
 
-/// rxing's `GlobalHistogramBinarizer` with the bit matrix built at once; row queries (1-D
-/// readers) go to rxing's.
-pub struct GlobalBinarizer<LS: LuminanceSource> {
-    ghb: GlobalHistogramBinarizer<LS>,
-    matrix: Option<BitMatrix>,
-}
-
-impl<LS: LuminanceSource> GlobalBinarizer<LS> {
-    /// Binarises `source` at once.
-    pub fn new(source: LS) -> Self {
-        let (width, height) = (source.get_width(), source.get_height());
-        let matrix = global_threshold(&source.get_matrix(), width, height);
-        Self {
-            ghb: GlobalHistogramBinarizer::new(source),
-            matrix,
-        }
-    }
+/// rxing's `GlobalHistogramBinarizer` with the bit matrix built at once.
+pub fn global_binarizer<LS: LuminanceSource>(source: LS) -> Precomputed<LS> {
+    Precomputed::new(source, global_threshold)
 }
 
 /// The histogram of rows `height · k / 5` (k = 1..4), columns `width / 5 .. 4 width / 5`.
@@ -93,7 +79,7 @@ fn estimate_black_point(buckets: &[u32; LUMINANCE_BUCKETS]) -> Option<u32> {
 
 /// The global-threshold bit matrix (black where the grey level is below the black point);
 /// `None` where rxing's binariser fails (too little contrast, or an empty image).
-fn global_threshold(lum: &[u8], width: usize, height: usize) -> Option<BitMatrix> {
+pub fn global_threshold(lum: &[u8], width: usize, height: usize) -> Option<BitMatrix> {
     if width == 0 || height == 0 || lum.len() != width * height {
         return None;
     }
@@ -115,56 +101,11 @@ fn global_threshold(lum: &[u8], width: usize, height: usize) -> Option<BitMatrix
     Some(matrix)
 }
 
-impl<LS: LuminanceSource> Binarizer for GlobalBinarizer<LS> {
-    type Source = LS;
-
-    fn get_luminance_source(&self) -> &LS {
-        self.ghb.get_luminance_source()
-    }
-
-    fn get_black_row(&self, y: usize) -> rxing::common::Result<Cow<'_, BitArray>> {
-        self.ghb.get_black_row(y)
-    }
-
-    fn get_black_row_from_matrix(&self, y: usize) -> rxing::common::Result<Cow<'_, BitArray>> {
-        match (&self.matrix, u32::try_from(y)) {
-            (Some(m), Ok(y)) => Ok(Cow::Owned(m.getRow(y))),
-            _ => self.ghb.get_black_row_from_matrix(y),
-        }
-    }
-
-    fn get_black_matrix(&self) -> rxing::common::Result<&BitMatrix> {
-        match &self.matrix {
-            Some(m) => Ok(m),
-            None => self.ghb.get_black_matrix(),
-        }
-    }
-
-    fn get_black_line(
-        &self,
-        l: usize,
-        lt: LineOrientation,
-    ) -> rxing::common::Result<Cow<'_, BitArray>> {
-        self.ghb.get_black_line(l, lt)
-    }
-
-    fn create_binarizer(&self, source: LS) -> Self {
-        Self::new(source)
-    }
-
-    fn get_width(&self) -> usize {
-        self.ghb.get_width()
-    }
-
-    fn get_height(&self) -> usize {
-        self.ghb.get_height()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rxing::Luma8Source;
+    use rxing::common::GlobalHistogramBinarizer;
+    use rxing::{Binarizer, Luma8Source};
 
     /// A textured, unevenly lit image (two grey populations), or (`flat`) a black one, where
     /// no black point is found.
@@ -195,7 +136,7 @@ mod tests {
             let pixels = test_image(w, h, flat);
             let (wu, hu) = (u32::try_from(w).unwrap_or(0), u32::try_from(h).unwrap_or(0));
             let source = || Luma8Source::new_with_slice(&pixels, wu, hu).expect("source");
-            let ours = GlobalBinarizer::new(source());
+            let ours = global_binarizer(source());
             let theirs = GlobalHistogramBinarizer::new(source());
             match (ours.get_black_matrix(), theirs.get_black_matrix()) {
                 (Ok(a), Ok(b)) => {

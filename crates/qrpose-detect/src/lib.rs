@@ -27,6 +27,7 @@
 
 mod auto;
 mod backend;
+pub mod binarizer;
 pub mod budget;
 pub mod cancel;
 pub mod contain;

@@ -5,7 +5,7 @@
 //! which rxing's results drop. rxing lists the corners as TL, TR, BL, BR (checked on
 //! rendered ground truth); they are reordered here.
 //!
-//! The hybrid binariser is rxing's algorithm reimplemented ([`LocalBinarizer`]): the same
+//! The hybrid binariser is rxing's algorithm reimplemented ([`local_binarizer`]): the same
 //! bits (a test compares them), faster: rxing sets the matrix one bit at a time, which was
 //! the largest share of its read of a 1280 × 720 frame (3.3 ms with rxing's binariser,
 //! about 1.6 ms with this one, one core). The global-histogram binariser is rxing's too,
@@ -13,21 +13,19 @@
 
 use super::decode::GrayImage;
 use super::{Backend, Candidate, Detector};
+use crate::binarizer::Precomputed;
 use crate::contain::contain;
-use crate::global_binarizer::GlobalBinarizer;
+use crate::global_binarizer::global_binarizer;
 use crate::pairs::FinderPattern;
 use crate::region::Region;
 use qrpose_core::geometry::frames::PixelPoint;
 use rxing::common::cpp_essentials::concentric_finder::ConcentricPattern;
-use rxing::common::{
-    BitArray, BitMatrix, DetectorRXingResult, GlobalHistogramBinarizer, LineOrientation,
-};
+use rxing::common::{BitArray, BitMatrix, DetectorRXingResult};
 use rxing::qrcode::cpp_port::decoder::Decode;
 use rxing::qrcode::cpp_port::detector::{
     FindFinderPatterns, FinderPatternSet, GenerateFinderPatternSets, SampleQR,
 };
 use rxing::{BarcodeFormat, Binarizer, Luma8Source, LuminanceSource, RXingResult};
-use std::borrow::Cow;
 
 /// rxing behind the [`Detector`] interface.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -63,9 +61,9 @@ fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Read {
         return Read::default();
     };
     if global_histogram {
-        read(&GlobalBinarizer::new(source))
+        read(&global_binarizer(source))
     } else {
-        read(&LocalBinarizer::new(source))
+        read(&local_binarizer(source))
     }
 }
 
@@ -152,21 +150,8 @@ pub(crate) const WORD_BITS: usize = usize::BITS as usize;
 /// calls black is black), and each pixel row is compared and packed a word at a time. Row
 /// queries (1-D readers) and images under 40 px go to the global-histogram binariser, as in
 /// rxing.
-pub struct LocalBinarizer<LS: LuminanceSource> {
-    ghb: GlobalHistogramBinarizer<LS>,
-    matrix: Option<BitMatrix>,
-}
-
-impl<LS: LuminanceSource> LocalBinarizer<LS> {
-    /// Binarises `source` at once.
-    pub fn new(source: LS) -> Self {
-        let (width, height) = (source.get_width(), source.get_height());
-        let matrix = local_threshold(&source.get_matrix(), width, height);
-        Self {
-            ghb: GlobalHistogramBinarizer::new(source),
-            matrix,
-        }
-    }
+pub fn local_binarizer<LS: LuminanceSource>(source: LS) -> Precomputed<LS> {
+    Precomputed::new(source, local_threshold)
 }
 
 /// The black points of the blocks, row-major (`sub_w` × `sub_h`).
@@ -294,52 +279,6 @@ pub(crate) fn pack_flags(flags: &[u8]) -> usize {
         })
 }
 
-impl<LS: LuminanceSource> Binarizer for LocalBinarizer<LS> {
-    type Source = LS;
-
-    fn get_luminance_source(&self) -> &LS {
-        self.ghb.get_luminance_source()
-    }
-
-    fn get_black_row(&self, y: usize) -> rxing::common::Result<Cow<'_, BitArray>> {
-        self.ghb.get_black_row(y)
-    }
-
-    fn get_black_row_from_matrix(&self, y: usize) -> rxing::common::Result<Cow<'_, BitArray>> {
-        match (&self.matrix, u32::try_from(y)) {
-            (Some(m), Ok(y)) => Ok(Cow::Owned(m.getRow(y))),
-            _ => self.get_black_row(y),
-        }
-    }
-
-    fn get_black_matrix(&self) -> rxing::common::Result<&BitMatrix> {
-        match &self.matrix {
-            Some(m) => Ok(m),
-            None => self.ghb.get_black_matrix(),
-        }
-    }
-
-    fn get_black_line(
-        &self,
-        l: usize,
-        lt: LineOrientation,
-    ) -> rxing::common::Result<Cow<'_, BitArray>> {
-        self.ghb.get_black_line(l, lt)
-    }
-
-    fn create_binarizer(&self, source: LS) -> Self {
-        Self::new(source)
-    }
-
-    fn get_width(&self) -> usize {
-        self.ghb.get_width()
-    }
-
-    fn get_height(&self) -> usize {
-        self.ghb.get_height()
-    }
-}
-
 impl Detector for RxingDetector {
     fn backend(&self) -> Backend {
         Backend::Rxing
@@ -395,7 +334,7 @@ mod tests {
             let pixels = test_image(w, h);
             let (wu, hu) = (u32::try_from(w).unwrap_or(0), u32::try_from(h).unwrap_or(0));
             let ours =
-                LocalBinarizer::new(Luma8Source::new_with_slice(&pixels, wu, hu).expect("source"));
+                local_binarizer(Luma8Source::new_with_slice(&pixels, wu, hu).expect("source"));
             let theirs =
                 HybridBinarizer::new(Luma8Source::new_with_slice(&pixels, wu, hu).expect("source"));
             let (a, b) = (
