@@ -135,23 +135,50 @@ pub fn label_text(payload: Option<&str>) -> String {
     format!("{kept}...")
 }
 
-/// Where a marker's label goes: standing on the topmost corner's row at the leftmost
-/// corner's column, or hanging below the bottommost corner when there is no room above.
+/// The grid labels are placed on, px: a JPEG's 8 × 8 blocks. A label box whose sides lie
+/// on block edges (its size is a multiple of 8 px at 720 p and 1440 p) leaves the blocks
+/// around it as they were: no ringing of the box's edge into the photo, and fewer blocks
+/// encoded anew when an annotated JPEG is spliced.
+const LABEL_GRID_PX: f64 = 8.0;
+
+/// A marker's label, placed by [`label_place`].
 fn label_for(marker: &MarkerResultDto, label_height_px: f64) -> Label {
-    let corners = &marker.corners_px;
-    let left = corners.iter().map(|c| c[0]).fold(f64::INFINITY, f64::min);
-    let top = corners.iter().map(|c| c[1]).fold(f64::INFINITY, f64::min);
-    let bottom = corners
+    let (anchor_px, below) = label_place(&marker.corners_px, label_height_px);
+    Label {
+        anchor_px,
+        below,
+        text: label_text(marker.payload.as_deref()),
+    }
+}
+
+/// Where the label of a code with corners `corners_px` goes, and whether it hangs below the
+/// code: above it, the box's left side on the last grid line at or left of the leftmost
+/// corner, its bottom on the last grid line at least half a label height above the topmost
+/// corner; or, when there is no room above, hanging from the first grid line half a label
+/// height below the bottommost corner.
+fn label_place(corners_px: &[[f64; 2]; 4], label_height_px: f64) -> ([f64; 2], bool) {
+    let left = corners_px
+        .iter()
+        .map(|c| c[0])
+        .fold(f64::INFINITY, f64::min);
+    let top = corners_px
+        .iter()
+        .map(|c| c[1])
+        .fold(f64::INFINITY, f64::min);
+    let bottom = corners_px
         .iter()
         .map(|c| c[1])
         .fold(f64::NEG_INFINITY, f64::max);
     let gap_px = label_height_px / 2.0;
-    let below = top - gap_px - label_height_px < 0.0;
-    Label {
-        anchor_px: [left, if below { bottom + gap_px } else { top - gap_px }],
-        below,
-        text: label_text(marker.payload.as_deref()),
-    }
+    let grid = |v: f64, round: fn(f64) -> f64| round(v / LABEL_GRID_PX) * LABEL_GRID_PX;
+    let above = grid(top - gap_px, f64::floor);
+    let below = above - label_height_px < 0.0;
+    let y = if below {
+        grid(bottom + gap_px, f64::ceil)
+    } else {
+        above
+    };
+    ([grid(left, f64::floor), y], below)
 }
 
 /// The overlay of `response`, whose poses were computed with `camera`; labels are
@@ -224,6 +251,24 @@ mod tests {
         };
         let flipped = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]];
         assert!(project_axes(&camera(), &centre, &flipped, 50.0).is_none());
+    }
+
+    #[test]
+    fn labels_sit_on_the_block_grid_clear_of_the_code() {
+        let corners = [
+            [101.3, 203.7],
+            [180.2, 199.5],
+            [185.0, 270.1],
+            [99.9, 275.0],
+        ];
+        // Above: left side at x = 96 (≤ 99.9), bottom at y = 184 (≤ 199.5 − 12).
+        assert_eq!(label_place(&corners, 24.0), ([96.0, 184.0], false));
+        // No room above (the box would start above y = 0): below, from y = 288 (≥ 275 + 12).
+        let high = corners.map(|[x, y]| [x, y - 180.0]);
+        assert_eq!(label_place(&high, 24.0), ([96.0, 112.0], true));
+        // Corners on grid lines stay put, and the gap is kept.
+        let square = [[64.0, 96.0], [128.0, 96.0], [128.0, 160.0], [64.0, 160.0]];
+        assert_eq!(label_place(&square, 24.0), ([64.0, 80.0], false));
     }
 
     #[test]
