@@ -73,7 +73,7 @@ fn on_read_symbol(p: &PixelPoint, found: &[Candidate]) -> bool {
         .iter()
         .filter(|c| c.payload.is_some())
         .filter_map(|c| Region::around(&c.corners_px, 0.0))
-        .any(|r| (r.lo_u..=r.hi_u).contains(&p.u()) && (r.lo_v..=r.hi_v).contains(&p.v()))
+        .any(|r| r.contains(p))
 }
 
 /// The regions of every plausible pair among `patterns` whose patterns are on no symbol of
@@ -108,7 +108,7 @@ mod tests {
     }
 
     fn contains(r: &Region, u: f64, v: f64) -> bool {
-        (r.lo_u..=r.hi_u).contains(&u) && (r.lo_v..=r.hi_v).contains(&v)
+        r.contains(&PixelPoint::new(u, v))
     }
 
     #[test]

@@ -93,7 +93,8 @@ impl Region {
         w * h / self.area().min(other.area())
     }
 
-    fn contains(&self, p: &PixelPoint) -> bool {
+    /// Whether `p` lies in the region (edges included).
+    pub(crate) fn contains(&self, p: &PixelPoint) -> bool {
         (self.lo_u..=self.hi_u).contains(&p.u()) && (self.lo_v..=self.hi_v).contains(&p.v())
     }
 }

@@ -32,11 +32,27 @@ pub struct Segment {
     pub slots: Vec<Slot>,
 }
 
-/// Writes the segment's bits, with ZRLs that put the output at the bit position of
-/// `run` (un-stuffed data) modulo 8, then the run: its bits up to its first byte
-/// boundary, the file's bytes up to its last, and its last bits; the segment starts
-/// anew after it. `false`, with nothing written, when no ZRLs align it or the run
-/// holds no whole byte.
+/// Writes the segment's bits with ZRLs that put the output at bit `at` of the un-stuffed
+/// `data` modulo 8, then the data's bits from `at` to its next byte boundary: the output
+/// is then where the file's byte `at.div_ceil(8)` would go, and the file's bytes can
+/// follow. The segment is left empty. `false`, with nothing written, when no ZRLs align
+/// it.
+pub fn align_to(writer: &mut BitWriter, data: &[u8], segment: &mut Segment, at: usize) -> bool {
+    let length = segment.scratch.bit_len();
+    let target = (at - segment.start) % 8 + 8 - length % 8;
+    let Some(zrls) = plan_zrls(&segment.slots, u32::try_from(target % 8).unwrap_or(0)) else {
+        return false;
+    };
+    let (bits, length) = std::mem::take(&mut segment.scratch).into_bits();
+    write_with_zrls(writer, &bits, length, &segment.slots, &zrls);
+    segment.slots.clear();
+    writer.copy_bits(data, at, at.div_ceil(8) * 8);
+    true
+}
+
+/// [`align_to`] the start of `run` (un-stuffed data), then the run: the file's bytes up
+/// to its last byte boundary, and its last bits; the segment starts anew after it. `false`,
+/// with nothing written, when no ZRLs align it or the run holds no whole byte.
 pub fn write_aligned_run(
     writer: &mut BitWriter,
     (file, entropy): (&[u8], &Entropy),
@@ -45,21 +61,10 @@ pub fn write_aligned_run(
     run: Range<usize>,
 ) -> Result<bool, CannotSplice> {
     let (first_byte, last_byte) = (run.start.div_ceil(8), run.end / 8);
-    if last_byte <= first_byte {
+    let data = entropy.data.as_slice();
+    if last_byte <= first_byte || !align_to(writer, data, segment, run.start) {
         return Ok(false);
     }
-    let length = segment.scratch.bit_len();
-    let target = (run.start - segment.start) % 8 + 8 - length % 8;
-    let Some(zrls) = plan_zrls(&segment.slots, u32::try_from(target % 8).unwrap_or(0)) else {
-        return Ok(false);
-    };
-    let capacity = interval.data.end.saturating_sub(last_byte) + 1024;
-    let scratch = std::mem::replace(&mut segment.scratch, BitWriter::scratch(capacity));
-    let (bits, length) = scratch.into_bits();
-    write_with_zrls(writer, &bits, length, &segment.slots, &zrls);
-    segment.slots.clear();
-    let data = entropy.data.as_slice();
-    writer.copy_bits(data, run.start, first_byte * 8);
     let bytes = writer.bytes().ok_or(CannotSplice::BadEntropy)?;
     let (from, to) = (
         entropy.file_offset(interval, first_byte),
@@ -68,12 +73,13 @@ pub fn write_aligned_run(
     bytes.extend_from_slice(file.get(from..to).unwrap_or_default());
     writer.copy_bits(data, last_byte * 8, run.end);
     segment.start = run.end;
+    segment.scratch = BitWriter::scratch(interval.data.end.saturating_sub(last_byte) + 1024);
     Ok(true)
 }
 
 /// How many ZRLs to put in each slot (by index) so that they add `target` bits modulo 8,
 /// as few slots' worth as it takes; `None` when the slots cannot.
-pub fn plan_zrls(slots: &[Slot], target: u32) -> Option<Vec<(usize, u32)>> {
+fn plan_zrls(slots: &[Slot], target: u32) -> Option<Vec<(usize, u32)>> {
     if target == 0 {
         return Some(Vec::new());
     }
@@ -120,7 +126,7 @@ pub fn plan_zrls(slots: &[Slot], target: u32) -> Option<Vec<(usize, u32)>> {
 
 /// Copies `length` bits of `bits` into `writer`, with `zrls` (slot index, count) ZRL codes
 /// before the end-of-block codes of those slots.
-pub fn write_with_zrls(
+fn write_with_zrls(
     writer: &mut BitWriter,
     bits: &[u8],
     length: usize,

@@ -429,7 +429,8 @@ impl BitWriter {
 mod tests {
     use super::*;
 
-    /// The bytes of `writer` after padding, and the same bits written one at a time.
+    /// The padded bytes of the `lead` codes, then `count` copies of the `n` bits of `value`
+    /// written a bit at a time.
     fn one_by_one(lead: &[(u32, u32)], value: u32, n: u32, count: usize) -> Vec<u8> {
         let mut writer = BitWriter::new(Vec::new());
         for &(v, bits) in lead {

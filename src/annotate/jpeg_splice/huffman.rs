@@ -274,20 +274,53 @@ pub struct Coders {
 }
 
 impl Coders {
-    /// Whether `self` and `other` share their lookup tables (one was cloned from the other).
-    pub fn shares_tables_with(&self, other: &Self) -> bool {
-        Arc::ptr_eq(&self.ac_decoder.skip, &other.ac_decoder.skip)
-            && Arc::ptr_eq(&self.ac_encoder.codes, &other.ac_encoder.codes)
+    /// The coders of the DC table `dc` and the AC table `ac`, built anew.
+    fn build(dc: &HuffmanSpec, ac: &HuffmanSpec) -> Result<Self, CannotSplice> {
+        Ok(Self {
+            dc_decoder: Decoder::new(dc)?,
+            ac_decoder: Decoder::new(ac)?.with_pairs(),
+            dc_encoder: Encoder::new(dc)?,
+            ac_encoder: Encoder::new(ac)?,
+        })
     }
 }
 
 /// How many table pairs [`coders`] remembers.
 const RECENT_CODERS: usize = 8;
 
-/// The coders of the table pairs used last, most recent first. A camera writes every frame
-/// with the same tables, and building an AC decoder's lookup tables costs about what
-/// splicing a tenth of a 1280×720 frame does; the tables are shared, not copied.
-static RECENT: Mutex<Vec<(HuffmanSpec, HuffmanSpec, Coders)>> = Mutex::new(Vec::new());
+/// The coders of the table pairs used last, most recent first, at most `capacity` of them.
+/// Clones share the lookup tables, so a hit copies no table.
+struct Recent {
+    entries: Vec<(HuffmanSpec, HuffmanSpec, Coders)>,
+    capacity: usize,
+}
+
+impl Recent {
+    const fn new(capacity: usize) -> Self {
+        Self {
+            entries: Vec::new(),
+            capacity,
+        }
+    }
+
+    /// The coders of (`dc`, `ac`): the remembered ones, or built and remembered, the least
+    /// recently used pair forgotten past the capacity.
+    fn get(&mut self, dc: &HuffmanSpec, ac: &HuffmanSpec) -> Result<Coders, CannotSplice> {
+        let entry = match self.entries.iter().position(|(d, a, _)| d == dc && a == ac) {
+            Some(i) => self.entries.remove(i),
+            None => (dc.clone(), ac.clone(), Coders::build(dc, ac)?),
+        };
+        let coders = entry.2.clone();
+        self.entries.insert(0, entry);
+        self.entries.truncate(self.capacity);
+        Ok(coders)
+    }
+}
+
+/// The process's [`Recent`] coders. A camera writes every frame with the same tables, and
+/// building an AC decoder's lookup tables costs about what splicing a tenth of a 1280×720
+/// frame does.
+static RECENT: Mutex<Recent> = Mutex::new(Recent::new(RECENT_CODERS));
 
 /// The coders of the DC table `dc` and the AC table `ac`: built, or the ones built for the
 /// same tables by a recent call (at most [`RECENT_CODERS`] pairs are kept).
@@ -295,29 +328,10 @@ static RECENT: Mutex<Vec<(HuffmanSpec, HuffmanSpec, Coders)>> = Mutex::new(Vec::
 /// # Errors
 /// [`CannotSplice::Malformed`] for a table that is no prefix code.
 pub fn coders(dc: &HuffmanSpec, ac: &HuffmanSpec) -> Result<Coders, CannotSplice> {
-    let cached = {
-        let mut recent = RECENT.lock().unwrap_or_else(PoisonError::into_inner);
-        let found = recent.iter().position(|(d, a, _)| d == dc && a == ac);
-        found.map(|i| {
-            let entry = recent.remove(i);
-            let coders = entry.2.clone();
-            recent.insert(0, entry);
-            coders
-        })
-    };
-    if let Some(coders) = cached {
-        return Ok(coders);
-    }
-    let coders = Coders {
-        dc_decoder: Decoder::new(dc)?,
-        ac_decoder: Decoder::new(ac)?.with_pairs(),
-        dc_encoder: Encoder::new(dc)?,
-        ac_encoder: Encoder::new(ac)?,
-    };
-    let mut recent = RECENT.lock().unwrap_or_else(PoisonError::into_inner);
-    recent.insert(0, (dc.clone(), ac.clone(), coders.clone()));
-    recent.truncate(RECENT_CODERS);
-    Ok(coders)
+    RECENT
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .get(dc, ac)
 }
 
 /// ITU T.81 Annex K.3, table K.4: the typical chrominance DC table.
@@ -346,5 +360,31 @@ pub fn chroma_ac() -> HuffmanSpec {
             0xd7, 0xd8, 0xd9, 0xda, 0xe2, 0xe3, 0xe4, 0xe5, 0xe6, 0xe7, 0xe8, 0xe9, 0xea, 0xf2,
             0xf3, 0xf4, 0xf5, 0xf6, 0xf7, 0xf8, 0xf9, 0xfa,
         ],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Whether `a` and `b` share their lookup tables (one was cloned from the other).
+    fn shared(a: &Coders, b: &Coders) -> bool {
+        Arc::ptr_eq(&a.ac_decoder.skip, &b.ac_decoder.skip)
+            && Arc::ptr_eq(&a.dc_decoder.fast, &b.dc_decoder.fast)
+            && Arc::ptr_eq(&a.ac_encoder.codes, &b.ac_encoder.codes)
+    }
+
+    #[test]
+    fn recent_coders_are_shared_until_forgotten() {
+        let (dc, ac) = (chroma_dc(), chroma_ac());
+        let mut recent = Recent::new(2);
+        let first = recent.get(&dc, &ac).expect("a prefix code");
+        assert!(shared(&first, &recent.get(&dc, &ac).expect("remembered")));
+        let other = recent.get(&ac, &dc).expect("a prefix code");
+        assert!(!shared(&first, &other), "other tables, other coders");
+        // (dc, ac) was used before (ac, dc): a third pair makes it the one forgotten.
+        recent.get(&dc, &dc).expect("a prefix code");
+        assert!(shared(&other, &recent.get(&ac, &dc).expect("remembered")));
+        assert!(!shared(&first, &recent.get(&dc, &ac).expect("built again")));
     }
 }

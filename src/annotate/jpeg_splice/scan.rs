@@ -6,7 +6,7 @@
 //! else shifted bit by bit. A grey frame's added chroma follows in two scans of its own.
 
 use super::CannotSplice;
-use super::align::{ALIGNED_RUN, Segment, Slot, plan_zrls, write_aligned_run, write_with_zrls};
+use super::align::{ALIGNED_RUN, Segment, Slot, align_to, write_aligned_run};
 use super::block::{Coefficients, Transform};
 use super::coding::{read_block, skip_block, write_block};
 use super::draw::{Drawing, Touched};
@@ -237,25 +237,15 @@ impl Walk<'_> {
         if let Some(from) = copy_from {
             segment.scratch.copy_bits(data, from, end);
         }
-        let Segment {
-            start: segment_start,
-            scratch,
-            slots,
-        } = segment;
-        let (bits, length) = scratch.into_bits();
-        if self.align && last + 1 < mcus.end {
-            // Same length modulo 8, the rest of the interval keeps its bytes.
-            let target = (end - segment_start) % 8 + 8 - length % 8;
-            if let Some(zrls) = plan_zrls(&slots, u32::try_from(target % 8).unwrap_or(0)) {
-                write_with_zrls(writer, &bits, length, &slots, &zrls);
-                writer.copy_bits(data, end, end.div_ceil(8) * 8);
-                let bytes = writer.bytes().ok_or(CannotSplice::BadEntropy)?;
-                let resume = entropy.file_offset(interval, end.div_ceil(8));
-                bytes.extend_from_slice(file.get(resume..interval.next).unwrap_or_default());
-                self.report.aligned_tails += 1;
-                return Ok(());
-            }
+        if self.align && last + 1 < mcus.end && align_to(writer, data, &mut segment, end) {
+            // The rest of the interval keeps its bytes.
+            let bytes = writer.bytes().ok_or(CannotSplice::BadEntropy)?;
+            let resume = entropy.file_offset(interval, end.div_ceil(8));
+            bytes.extend_from_slice(file.get(resume..interval.next).unwrap_or_default());
+            self.report.aligned_tails += 1;
+            return Ok(());
         }
+        let (bits, length) = segment.scratch.into_bits();
         writer.copy_bits(&bits, 0, length);
         // The rest of the interval, shifted as it comes.
         for _ in last + 1..mcus.end {
