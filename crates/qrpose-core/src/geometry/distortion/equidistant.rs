@@ -115,20 +115,18 @@ impl Equidistant {
         for _ in 0..UNDISTORT_MAX_ITERATIONS {
             let (value, slope) = self.theta_d_with_derivative(theta);
             let residual = value - theta_d;
-            if residual.abs() <= UNDISTORT_TOL {
-                return Some(theta);
-            }
             if residual < 0.0 {
                 lo = theta;
             } else {
                 hi = theta;
             }
             let newton = theta - residual / slope;
-            theta = if newton > lo && newton < hi {
-                newton
-            } else {
-                0.5 * (lo + hi)
-            };
+            let inside = newton > lo && newton < hi;
+            if residual.abs() <= UNDISTORT_TOL {
+                // One Newton step past the tolerance is exact to rounding.
+                return Some(if inside { newton } else { theta });
+            }
+            theta = if inside { newton } else { 0.5 * (lo + hi) };
         }
         None
     }

@@ -150,7 +150,9 @@ impl RationalPolynomial {
         DistortedWithJacobian { xd, yd, j }
     }
 
-    /// The inverse of eqs. (1)-(3) by Newton's method from the distorted point; `None` as
+    /// The inverse of eqs. (1)-(3) by Newton's method from the distorted point, one step past
+    /// [`UNDISTORT_TOL`] (so exact to rounding, which the pose of a small, distant marker
+    /// needs: its tilt amplifies a ray's error about (distance / size)² times); `None` as
     /// [`super::Distortion::undistort`] (no convergence, or a Jacobian that is not positive,
     /// i.e. the model folds over, at an iterate).
     pub(super) fn undistort(&self, xd: f64, yd: f64) -> Option<(f64, f64)> {
@@ -162,11 +164,13 @@ impl RationalPolynomial {
             if !det.is_finite() || det <= 0.0 {
                 return None;
             }
+            x -= (d.j[1][1] * ex - d.j[0][1] * ey) / det;
+            y -= (-d.j[1][0] * ex + d.j[0][0] * ey) / det;
+            // Within tolerance the step just taken is quadratically small: its result is
+            // exact to rounding, where the iterate before it was only within 1e-12.
             if ex.abs().max(ey.abs()) <= UNDISTORT_TOL {
                 return Some((x, y));
             }
-            x -= (d.j[1][1] * ex - d.j[0][1] * ey) / det;
-            y -= (-d.j[1][0] * ex + d.j[0][0] * ey) / det;
         }
         None
     }
