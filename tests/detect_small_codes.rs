@@ -144,3 +144,70 @@ fn balanced_reads_a_small_code_next_to_others_from_a_pair_of_its_finder_patterns
         decoded_by(&balanced)
     );
 }
+
+/// Frame `seed` of `scripts/multicode_bench.py` (its effects: blur σ, noise, JPEG quality),
+/// decoded as the benchmark's JPEG is.
+fn multicode_frame(seed: u64, blur_px: f64, noise: f64, quality: u8) -> GrayImage {
+    let scene = random_scene(seed, &SceneRanges::default()).expect("a scene");
+    let effects = Effects {
+        supersample: 4,
+        blur_px,
+        noise,
+        encoding: Encoding::Jpeg(quality),
+        seed,
+        ..Effects::default()
+    };
+    let jpeg = render_scene(&scene, &effects).expect("renders").encoded;
+    decode_gray(&jpeg, &DecodeLimits::default()).expect("decodes")
+}
+
+/// Asserts that `balanced` reads `text` in `image`, and by a pass whose name starts with
+/// `by` and contains `variant`.
+fn assert_read_by(image: &GrayImage, text: &str, by: &str, variant: &str) {
+    let balanced = detect(image, Effort::Balanced);
+    assert!(
+        texts(&balanced).iter().any(|t| t == text),
+        "{text} not in {:?}",
+        texts(&balanced)
+    );
+    let passes = decoded_by(&balanced);
+    assert!(
+        passes
+            .iter()
+            .any(|name| name.starts_with(by) && name.contains(variant)),
+        "{passes:?}"
+    );
+}
+
+/// Frame 12 (blur σ 0.774 px, noise 3.261, JPEG 94): its code S12-C4 (32 px, 1.5 px per
+/// module) shows the sharpened read two finder patterns; the double-scale crops of the pair
+/// do not read it, the quadruple-scale sharpened crop does.
+#[test]
+fn balanced_reads_a_code_of_under_two_px_per_module_at_quadruple_scale() {
+    let image = multicode_frame(12, 0.774, 3.261, 94);
+    assert_read_by(&image, "S12-C4-", "sharpened pair", "quad sharpened");
+}
+
+/// Frame 39 (blur σ 0.613 px, noise 2.188, JPEG 94): one code reads, so the sharpened read
+/// does not run; S39-C0 (43 px, 1.7 px per module) shows the full-resolution read one
+/// finder pattern, whose crop reads it.
+#[test]
+fn balanced_reads_a_small_code_from_a_lone_finder_pattern_next_to_a_read_code() {
+    let image = multicode_frame(39, 0.613, 2.188, 94);
+    assert_read_by(&image, "S39-C0-DLLEH6E9MRUAEW", "lone", "");
+}
+
+/// Frame 23 (blur σ 0.867 px, noise 2.516, JPEG 76): its code S23-C4 (36 px, 1.7 px per
+/// module) is located by the double-scale crop read of a pair of its finder patterns, whose
+/// sampled grid does not decode; read again through its module grid on an unsharp-masked
+/// copy of the symbol, it does.
+#[test]
+fn balanced_reads_a_located_small_code_through_its_sharpened_module_grid() {
+    let image = multicode_frame(23, 0.867, 2.516, 76);
+    assert_read_by(
+        &image,
+        "S23-C4-VVNAOM7ZP",
+        "sharpened pair",
+        "double sharpened",
+    );
+}

@@ -95,6 +95,27 @@ pub fn pair_regions(patterns: &[FinderPattern], found: &[Candidate]) -> Vec<Regi
     regions
 }
 
+/// Lone finder patterns up to this wide get a crop of their own (`auto`'s lone-pattern
+/// reads), px: 7 modules of 2.5 px, the codes whose other finder patterns blur away.
+pub const LONE_MAX_SIZE_PX: f64 = 18.0;
+/// Reach of a lone pattern's region from its centre, in finder widths: the far corner of a
+/// version 2 code (25 modules) is 21.5 modules (3.07 widths) from a finder's centre along
+/// each axis, whichever of its three finders the pattern is.
+pub const LONE_REACH: f64 = 3.1;
+
+/// The regions of the small patterns of `patterns` (at most [`LONE_MAX_SIZE_PX`] wide) that
+/// lie on no symbol of `found` already read: each covers a code of versions 1-2 of which
+/// the pattern is any one finder, in the order of the patterns.
+#[must_use]
+pub fn lone_regions(patterns: &[FinderPattern], found: &[Candidate]) -> Vec<Region> {
+    patterns
+        .iter()
+        .filter(|p| p.size_px > 0.0 && p.size_px <= LONE_MAX_SIZE_PX)
+        .filter(|p| !on_read_symbol(&p.centre, found))
+        .filter_map(|p| Region::around(&[p.centre], LONE_REACH * p.size_px))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -143,6 +164,19 @@ mod tests {
     }
 
     #[test]
+    fn a_lone_region_covers_a_small_code_whichever_finder_the_pattern_is() {
+        // A 25-module code of 1.7 px modules: finder 12 px wide, far corner 21.5 modules
+        // (36.6 px) from its centre along each axis.
+        let lone = lone_regions(&[pattern(200.0, 100.0, 12.0)], &[]);
+        assert_eq!(lone.len(), 1);
+        for (u, v) in [(163.4, 63.4), (236.6, 63.4), (163.4, 136.6), (236.6, 136.6)] {
+            assert!(contains(&lone[0], u, v), "({u}, {v}) outside {:?}", lone[0]);
+        }
+        // Large patterns belong to codes the first reads see; they get no crop.
+        assert!(lone_regions(&[pattern(200.0, 100.0, 30.0)], &[]).is_empty());
+    }
+
+    #[test]
     fn patterns_on_a_read_symbol_pair_with_nothing() {
         let read = Candidate {
             corners_px: [
@@ -157,6 +191,7 @@ mod tests {
             backend: Backend::Rxing,
         };
         let (a, b) = (pattern(200.0, 100.0, 17.0), pattern(243.0, 100.0, 17.0));
-        assert!(pair_regions(&[a, b], &[read]).is_empty());
+        assert!(pair_regions(&[a, b], std::slice::from_ref(&read)).is_empty());
+        assert!(lone_regions(&[a], &[read]).is_empty());
     }
 }

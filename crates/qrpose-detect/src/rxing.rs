@@ -25,6 +25,7 @@ use rxing::qrcode::cpp_port::decoder::Decode;
 use rxing::qrcode::cpp_port::detector::{
     FindFinderPatterns, FinderPatternSet, GenerateFinderPatternSets, SampleQR,
 };
+use rxing::qrcode::detector::QRCodeDetectorResult;
 use rxing::{BarcodeFormat, Binarizer, Luma8Source, LuminanceSource, RXingResult};
 
 /// rxing behind the [`Detector`] interface.
@@ -32,19 +33,30 @@ use rxing::{BarcodeFormat, Binarizer, Luma8Source, LuminanceSource, RXingResult}
 pub struct RxingDetector {
     /// The global-histogram binariser instead of the hybrid one.
     global_histogram: bool,
+    /// Triples whose grid was sampled but did not decode come back as undecoded candidates
+    /// (their sampled corners and module count), for the re-read through the refined grid.
+    located: bool,
 }
 
 impl RxingDetector {
     /// On the hybrid (local block) binariser, rxing's default for 2-D codes.
     pub fn hybrid() -> Self {
+        Self::default()
+    }
+    /// The hybrid binariser, returning also the symbols whose grid was sampled but did not
+    /// decode (payload `None`): `auto`'s crop reads of small candidates hand them to the
+    /// re-read through the refined grid ([`crate::reread`]).
+    pub fn located() -> Self {
         Self {
-            global_histogram: false,
+            located: true,
+            ..Self::default()
         }
     }
     /// On the global-histogram binariser (one threshold per row from the histogram).
     pub fn global_histogram() -> Self {
         Self {
             global_histogram: true,
+            ..Self::default()
         }
     }
 }
@@ -53,17 +65,17 @@ impl RxingDetector {
 /// could not read, and the finder patterns that no decoded symbol used.
 type Read = (Vec<Candidate>, Vec<Region>, Vec<FinderPattern>);
 
-fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Read {
+fn detect_unguarded(image: &GrayImage, detector: RxingDetector) -> Read {
     let (Ok(w), Ok(h)) = (u32::try_from(image.width()), u32::try_from(image.height())) else {
         return Read::default();
     };
     let Ok(source) = Luma8Source::new_with_slice(image.pixels(), w, h) else {
         return Read::default();
     };
-    if global_histogram {
-        read(&global_binarizer(source))
+    if detector.global_histogram {
+        read(&global_binarizer(source), detector.located)
     } else {
-        read(&local_binarizer(source))
+        read(&local_binarizer(source), detector.located)
     }
 }
 
@@ -72,7 +84,7 @@ fn detect_unguarded(image: &GrayImage, global_histogram: bool) -> Read {
 /// size, the module count, is kept: the reader's own results drop it. Triples that do not
 /// sample or decode are returned as [`Region`]s, where `auto` may look again, and so are
 /// the finder patterns that no decoded symbol used (see [`crate::pairs`]).
-fn read<B: Binarizer>(binarizer: &B) -> Read {
+fn read<B: Binarizer>(binarizer: &B, located: bool) -> Read {
     let Ok(binary) = binarizer.get_black_matrix() else {
         return Read::default();
     };
@@ -84,14 +96,15 @@ fn read<B: Binarizer>(binarizer: &B) -> Read {
         if [set.bl, set.tl, set.tr].iter().any(|p| used.contains(p)) {
             continue;
         }
-        let decoded = SampleQR(binary, &set).ok().and_then(|sampled| {
-            Decode(sampled.getBits())
-                .ok()
-                .filter(|d| d.isValid())
-                .map(|d| (sampled, d))
-        });
-        let Some((sampled, decoded)) = decoded else {
+        let sampled = SampleQR(binary, &set).ok();
+        let decoded = sampled
+            .as_ref()
+            .and_then(|sampled| Decode(sampled.getBits()).ok().filter(|d| d.isValid()));
+        let (Some(sampled), Some(decoded)) = (sampled.as_ref(), decoded) else {
             unread.extend(region_of(&set));
+            if located {
+                found.extend(sampled.as_ref().and_then(undecoded));
+            }
             continue;
         };
         used.extend([set.bl, set.tl, set.tr]);
@@ -126,6 +139,29 @@ fn read<B: Binarizer>(binarizer: &B) -> Read {
         })
         .collect();
     (found, unread, lone)
+}
+
+/// A symbol whose grid was sampled but did not decode: its sampled corners (qr order) and
+/// module count, no payload.
+fn undecoded(sampled: &QRCodeDetectorResult) -> Option<Candidate> {
+    let points = sampled.getPoints();
+    let corner = |i: usize| {
+        points
+            .get(i)
+            .map(|p| PixelPoint::new(f64::from(p.x), f64::from(p.y)))
+    };
+    // Sampled as top-left, top-right, bottom-left, bottom-right, as a decoded result lists them.
+    let (Some(tl), Some(tr), Some(bl), Some(br)) = (corner(0), corner(1), corner(2), corner(3))
+    else {
+        return None;
+    };
+    Some(Candidate {
+        corners_px: [tl, tr, br, bl],
+        payload: None,
+        text: None,
+        module_count: usize::try_from(sampled.getBits().getWidth()).ok(),
+        backend: Backend::Rxing,
+    })
 }
 
 /// The region of an unread finder-pattern triple.
@@ -304,7 +340,7 @@ impl RxingDetector {
         &self,
         image: &GrayImage,
     ) -> (Vec<Candidate>, Vec<Region>, Vec<FinderPattern>) {
-        contain(|| detect_unguarded(image, self.global_histogram)).unwrap_or_default()
+        contain(|| detect_unguarded(image, *self)).unwrap_or_default()
     }
 }
 

@@ -15,7 +15,11 @@
 //!    more ([`find_sharpened`], after step 2): small codes under blur lose their finder
 //!    patterns' light ring to the binariser; small triples found only there, and the places
 //!    of pairs of lone finder patterns found there ([`crate::pairs`]), get one double-scale
-//!    sharpened read of their crop.
+//!    sharpened read of their crop, then, for crops of at most [`passes::QUAD_MAX_SIDE_PX`],
+//!    a quadruple-scale sharpened one. In a frame where a code was read, small finder
+//!    patterns of the full-resolution read that no code used get the same crop reads
+//!    ([`sharpened::find_lone`]). Symbols those crop reads locate but cannot decode are
+//!    read again through their module grid ([`crate::reread`]) and dropped if that fails.
 //! 2. **Look closer** (`balanced`, `thorough`): only where a region is, never on the whole
 //!    frame: a crop around it goes through the other binariser, rqrr, and the image
 //!    variants of [`crate::filters`] (global histogram, denoised, contrast-stretched,
@@ -35,6 +39,7 @@ use crate::budget::{Effort, PassLog};
 use crate::filters::downscale_half;
 use crate::gray::GrayImage;
 use crate::merge::{any_decoded, reread_undecoded, same_symbol};
+use crate::pairs::FinderPattern;
 use crate::region::{Crop, Region, unread_regions};
 #[cfg(feature = "zxing-cpp")]
 use crate::zxing_cpp;
@@ -49,7 +54,7 @@ pub use passes::{
     SHARPEN_SIGMA_PX,
 };
 use passes::{decoded, look_closer, read_crop, rescale, variants};
-use sharpened::{find_sharpened, reads_small_codes};
+use sharpened::{find_lone, find_sharpened, reads_small_codes};
 
 /// Images up to this many px on their longer side get a double-scale second pass (the last
 /// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
@@ -75,6 +80,8 @@ struct Finds<'a> {
     regions: Vec<Region>,
     /// Corners of undecoded candidates already re-read.
     tried: Vec<[PixelPoint; 4]>,
+    /// Finder patterns of the full-resolution read that no decoded symbol used.
+    patterns: Vec<FinderPattern>,
     /// A zxing-cpp build's read of the whole frame, merged in after every other pass: those
     /// then run exactly as in the default build (what they skip, and whether the sharpened
     /// read and step 3 run, depends on what was found), so this build reads everything the
@@ -107,13 +114,14 @@ fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &mut PassLog)
             return;
         }
     }
-    let (read, regions) = log.run(
+    let (read, regions, patterns) = log.run(
         "rxing full",
-        |r: &(Vec<Candidate>, Vec<Region>)| decoded(&r.0),
-        || rxing::RxingDetector::hybrid().detect_with_regions(image),
+        |r: &(Vec<Candidate>, Vec<Region>, _)| decoded(&r.0),
+        || rxing::RxingDetector::hybrid().detect_with_patterns(image),
     );
     finds.add(read);
     finds.regions.extend(regions);
+    finds.patterns = patterns;
     let large = image.width().min(image.height()) >= HALF_SCALE_FIRST_MIN_SIDE_PX;
     if effort == Effort::Fast || !large || !log.may_continue() {
         return;
@@ -309,6 +317,7 @@ pub(crate) fn find_candidates(
         found: Vec::new(),
         regions: Vec::new(),
         tried: Vec::new(),
+        patterns: Vec::new(),
         aside: Vec::new(),
     };
     find(&mut finds, effort, best, log);
@@ -318,6 +327,7 @@ pub(crate) fn find_candidates(
         if nothing || reads_small_codes(&finds.found) {
             find_sharpened(&mut finds, log);
         }
+        find_lone(&mut finds, log);
     }
     let small_frame = image.pixels().len() <= WHOLE_FRAME_MAX_PIXELS && !any_decoded(&finds.found);
     if effort == Effort::Thorough || (effort == Effort::Balanced && small_frame) {

@@ -6,16 +6,20 @@
 use super::Finds;
 use super::UPSCALE_MAX_SIDE_PX;
 use super::passes::{
-    SHARPEN_AMOUNT, SHARPEN_SIGMA_PX, SecondPass, decoded, double, double_sharpened, read_crop,
+    SHARPEN_AMOUNT, SHARPEN_SIGMA_PX, SecondPass, decoded, double, double_sharpened,
+    quad_sharpened, read_crop,
 };
 use crate::budget::PassLog;
+use crate::corners::{RefineStatus, refine_corners};
 use crate::filters::sharpen;
 use crate::gray::GrayImage;
 use crate::merge::any_decoded;
 use crate::merge::shortest_side_px;
-use crate::pairs::pair_regions;
+use crate::pairs::{lone_regions, pair_regions};
 use crate::region::{Crop, Region, same_place, unread_regions};
-use crate::{Backend, Candidate, detector_for, rxing};
+use crate::reread::reread;
+use crate::rxing::RxingDetector;
+use crate::{Backend, Candidate, Detector, detector_for, rxing};
 use std::time::Instant;
 
 /// Step 1½ (`balanced`, `thorough`; run after step 2), on frames of at most
@@ -69,9 +73,33 @@ pub(super) fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
     });
 }
 
+/// Step 1¾ (`balanced`, `thorough`; after the sharpened read or in its place) in a frame
+/// where a code was read: the places of small lone finder patterns of the full-resolution
+/// read ([`lone_regions`]: patterns no decoded symbol used, off every code read), at most
+/// [`LONE_PATTERNS_MAX`], get the crop reads of [`look_once_more`] (`lone K ...`). A code
+/// of 1.5-2.5 px per module next to codes that read often shows that read one finder
+/// pattern and the sharpened read none or two (the sharpened read runs only on frames of
+/// two codes read); frames where nothing was read, and codes whose finder patterns were
+/// all used, pay nothing.
+pub(super) fn find_lone(finds: &mut Finds<'_>, log: &mut PassLog) {
+    if !any_decoded(&finds.found) {
+        return;
+    }
+    let lone: Vec<Region> =
+        unread_regions(lone_regions(&finds.patterns, &finds.found), &finds.found)
+            .into_iter()
+            .take(LONE_PATTERNS_MAX)
+            .collect();
+    look_once_more(finds, &lone, "lone", log, |_| None);
+}
+
+/// At most this many lone finder patterns of the full-resolution read get crop reads.
+pub const LONE_PATTERNS_MAX: usize = 2;
+
 /// A double-scale sharpened read of each region's crop, logged as `name K double
 /// sharpened`, then, where that read nothing, the pass that `then` makes of the crop, if
-/// any; `false` when the deadline stopped it.
+/// any, then a quadruple-scale sharpened read of a small crop ([`quad_sharpened`]);
+/// `false` when the deadline stopped it.
 fn look_once_more(
     finds: &mut Finds<'_>,
     regions: &[Region],
@@ -79,20 +107,32 @@ fn look_once_more(
     log: &mut PassLog,
     then: impl for<'a> Fn(&'a GrayImage) -> Option<SecondPass<'a>>,
 ) -> bool {
+    let image = finds.image;
     for (k, region) in regions.iter().enumerate() {
+        // A crop read before may have read the code this place belongs to.
+        if unread_regions(vec![*region], &finds.found).is_empty() {
+            continue;
+        }
         let Some(crop) = Crop::of_region(finds.image, region) else {
             continue;
         };
         let Some(pixels) = crop.image.as_ref() else {
             continue;
         };
-        let first = double_sharpened(pixels, detector_for(Backend::Rxing).ok());
-        for pass in [first, then(pixels)].into_iter().flatten() {
-            let Some(read) = pass.run(&format!("{name} {k} "), log, |d, variant, scale| {
-                read_crop(&crop, d, variant, scale)
+        let located = || -> Option<Box<dyn Detector>> { Some(Box::new(RxingDetector::located())) };
+        let first = double_sharpened(pixels, located());
+        let last = quad_sharpened(pixels, located());
+        for pass in [first, then(pixels), last].into_iter().flatten() {
+            let Some(mut read) = pass.run(&format!("{name} {k} "), log, |d, variant, scale| {
+                let mut read = read_crop(&crop, d, variant, scale);
+                // Symbols located but not decoded: read again through the refined grid at
+                // full resolution, and dropped if that fails too (a place, not a code).
+                reread_located(image, &mut read);
+                read
             }) else {
                 return false;
             };
+            read.retain(|c| c.payload.is_some());
             let done = any_decoded(&read);
             finds.add(read);
             if done {
@@ -101,6 +141,25 @@ fn look_once_more(
         }
     }
     true
+}
+
+/// Reads the undecoded symbols of `read` (located by a crop read) again through their module
+/// grid at full resolution: refined when refinement succeeds, else as sampled (at 1.5-2 px
+/// per module the refinement's edge profiles often fail, and the corners of a
+/// quadruple-scale read are within a quarter pixel).
+fn reread_located(image: &GrayImage, read: &mut [Candidate]) {
+    for c in read.iter_mut().filter(|c| c.payload.is_none()) {
+        let refinement = refine_corners(image, &c.corners_px, c.module_count);
+        let (corners, n) = match (refinement.status, refinement.module_count) {
+            (RefineStatus::Refined, Some(n)) => (refinement.corners_px, Some(n)),
+            _ => (c.corners_px, c.module_count),
+        };
+        if let Some(again) = n.and_then(|n| reread(image, &corners, n)) {
+            c.payload = Some(again.payload);
+            c.text = again.text;
+            c.module_count = n;
+        }
+    }
 }
 
 /// A frame in which a code of at most this many px per module was read (its shortest side
