@@ -211,3 +211,13 @@ fn balanced_reads_a_located_small_code_through_its_sharpened_module_grid() {
         "double sharpened",
     );
 }
+
+/// Frame 33 (blur σ 1.078 px, noise 3.851, JPEG 85): its code S33-C3 (44 px, 2.1 px per
+/// module) forms a triple on the sharpened copy whose sampled grid does not decode, and no
+/// crop of it reads; re-read through its module grid on an unsharp-masked copy of the
+/// symbol, it does (before, only `thorough`'s whole-frame passes read it).
+#[test]
+fn balanced_reads_a_code_located_by_the_sharpened_read_through_its_module_grid() {
+    let image = multicode_frame(33, 1.078, 3.851, 85);
+    assert_read_by(&image, "S33-C3-GR", "rxing sharpened", "");
+}

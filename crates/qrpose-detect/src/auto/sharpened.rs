@@ -19,7 +19,7 @@ use crate::pairs::{lone_regions, pair_regions};
 use crate::region::{Crop, Region, same_place, unread_regions};
 use crate::reread::reread;
 use crate::rxing::RxingDetector;
-use crate::{Backend, Candidate, Detector, detector_for, rxing};
+use crate::{Backend, Candidate, Detector, detector_for};
 use std::time::Instant;
 
 /// Step 1½ (`balanced`, `thorough`; run after step 2), on frames of at most
@@ -49,7 +49,12 @@ pub(super) fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
         started,
         "rxing sharpened",
         |r: &(Vec<Candidate>, Vec<Region>, _)| decoded(&r.0),
-        || rxing::RxingDetector::hybrid().detect_with_patterns(&sharp),
+        || {
+            let (mut read, regions, patterns) =
+                RxingDetector::located().detect_with_patterns(&sharp);
+            reread_small_located(image, &mut read);
+            (read, regions, patterns)
+        },
     );
     finds.add(read);
     drop(sharp);
@@ -160,6 +165,24 @@ fn reread_located(image: &GrayImage, read: &mut [Candidate]) {
             c.module_count = n;
         }
     }
+}
+
+/// [`reread_located`] on the small undecoded symbols of `read` (at most
+/// [`SHARPENED_REGIONS_MAX`] of at most [`SHARPENED_REGION_MAX_SIDE_PX`]); every undecoded
+/// symbol is dropped after.
+fn reread_small_located(image: &GrayImage, read: &mut Vec<Candidate>) {
+    let small = |c: &Candidate| {
+        Region::around(&c.corners_px, 0.0)
+            .is_some_and(|r| (r.hi_u - r.lo_u).max(r.hi_v - r.lo_v) <= SHARPENED_REGION_MAX_SIDE_PX)
+    };
+    read.retain(|c| c.payload.is_some() || small(c));
+    let mut undecoded = 0;
+    read.retain(|c| {
+        undecoded += usize::from(c.payload.is_none());
+        c.payload.is_some() || undecoded <= SHARPENED_REGIONS_MAX
+    });
+    reread_located(image, read);
+    read.retain(|c| c.payload.is_some());
 }
 
 /// A frame in which a code of at most this many px per module was read (its shortest side
