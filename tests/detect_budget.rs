@@ -7,11 +7,12 @@ use qrpose::api::image::{ImageLimits, ImageRequest, ImageWarningDto, estimate_im
 use qrpose::api::problem::ErrorCode;
 use qrpose::detect::{Budget, DetectorChoice, Effort, decode::GrayImage, detect_within};
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
-use qrpose::render::{
-    EcLevel, Effects, Encoding, Scene, SceneRanges, random_scene, render, render_scene,
-};
+use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
 use serde_json::json;
 use std::time::Duration;
+
+#[path = "support/multicode.rs"]
+mod multicode;
 
 /// A 1280 × 720 frame with three codes side by side, pasted from three renders (each
 /// 400 × 400, a 40 mm code at 0.3-0.4 m, mildly blurred), and its JPEG.
@@ -249,28 +250,18 @@ fn balanced_reads_the_small_blurred_codes_next_to_the_codes_it_read() {
     let mut missed = Vec::new();
     let mut read_by_the_sharpened_pass = 0;
     for (seed, quality, blur_px, noise) in SHELF_FRAMES {
-        let scene = random_scene(seed, &SceneRanges::default()).expect("a scene");
-        let effects = Effects {
-            supersample: 4,
-            blur_px,
-            noise,
-            encoding: Encoding::Jpeg(quality),
-            seed,
-            ..Effects::default()
-        };
-        let jpeg = render_scene(&scene, &effects).expect("renders");
-        let image = qrpose::detect::decode::decode_gray(
-            &jpeg.encoded,
-            &qrpose::detect::decode::DecodeLimits::default(),
-        )
-        .expect("decodes");
+        let multicode::Frame {
+            scene,
+            rendered,
+            image,
+        } = multicode::frame(seed, blur_px, noise, quality);
         let budget = Budget {
             effort: Effort::Balanced,
             max_detect: Some(ROOMY),
         };
         let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
         let read = texts(&detection);
-        for (code, truth) in scene.codes.iter().zip(&jpeg.truth) {
+        for (code, truth) in scene.codes.iter().zip(&rendered.truth) {
             let payload = String::from_utf8_lossy(&code.payload).into_owned();
             if shortest_side_px(&truth.corners_px) >= 40.0 && !read.contains(&payload) {
                 missed.push(payload);

@@ -6,10 +6,11 @@ use nalgebra::{Matrix3, Rotation3, Vector3};
 use qrpose::detect::decode::{DecodeLimits, GrayImage, decode_gray};
 use qrpose::detect::{Budget, Detection, DetectorChoice, Effort, detect_within};
 use qrpose::geometry::{camera::Camera, marker::Marker};
-use qrpose::render::{
-    EcLevel, Effects, Encoding, Scene, SceneRanges, random_scene, render, render_scene,
-};
+use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
 use std::time::Duration;
+
+#[path = "support/multicode.rs"]
+mod multicode;
 
 /// A deadline no pass here comes near.
 const ROOMY: Duration = Duration::from_secs(60);
@@ -119,17 +120,7 @@ fn balanced_reads_a_small_blurred_code_from_a_pair_of_its_finder_patterns() {
 /// finder patterns; before the pair's crop only `thorough`'s whole-frame passes read it.
 #[test]
 fn balanced_reads_a_small_code_next_to_others_from_a_pair_of_its_finder_patterns() {
-    let scene = random_scene(37, &SceneRanges::default()).expect("a scene");
-    let effects = Effects {
-        supersample: 4,
-        blur_px: 0.648,
-        noise: 1.741,
-        encoding: Encoding::Jpeg(76),
-        seed: 37,
-        ..Effects::default()
-    };
-    let jpeg = render_scene(&scene, &effects).expect("renders").encoded;
-    let image = decode_gray(&jpeg, &DecodeLimits::default()).expect("decodes");
+    let image = multicode::frame(37, 0.648, 1.741, 76).image;
     let balanced = detect(&image, Effort::Balanced);
     assert!(
         texts(&balanced).iter().any(|t| t == "S37-C0-UNAL1RPI4J"),
@@ -143,22 +134,6 @@ fn balanced_reads_a_small_code_next_to_others_from_a_pair_of_its_finder_patterns
         "{:?}",
         decoded_by(&balanced)
     );
-}
-
-/// Frame `seed` of `scripts/multicode_bench.py` (its effects: blur σ, noise, JPEG quality),
-/// decoded as the benchmark's JPEG is.
-fn multicode_frame(seed: u64, blur_px: f64, noise: f64, quality: u8) -> GrayImage {
-    let scene = random_scene(seed, &SceneRanges::default()).expect("a scene");
-    let effects = Effects {
-        supersample: 4,
-        blur_px,
-        noise,
-        encoding: Encoding::Jpeg(quality),
-        seed,
-        ..Effects::default()
-    };
-    let jpeg = render_scene(&scene, &effects).expect("renders").encoded;
-    decode_gray(&jpeg, &DecodeLimits::default()).expect("decodes")
 }
 
 /// Asserts that `balanced` reads `text` in `image`, and by a pass whose name starts with
@@ -184,7 +159,7 @@ fn assert_read_by(image: &GrayImage, text: &str, by: &str, variant: &str) {
 /// do not read it, the quadruple-scale sharpened crop does.
 #[test]
 fn balanced_reads_a_code_of_under_two_px_per_module_at_quadruple_scale() {
-    let image = multicode_frame(12, 0.774, 3.261, 94);
+    let image = multicode::frame(12, 0.774, 3.261, 94).image;
     assert_read_by(&image, "S12-C4-", "sharpened pair", "quad sharpened");
 }
 
@@ -193,7 +168,7 @@ fn balanced_reads_a_code_of_under_two_px_per_module_at_quadruple_scale() {
 /// finder pattern, whose crop reads it.
 #[test]
 fn balanced_reads_a_small_code_from_a_lone_finder_pattern_next_to_a_read_code() {
-    let image = multicode_frame(39, 0.613, 2.188, 94);
+    let image = multicode::frame(39, 0.613, 2.188, 94).image;
     assert_read_by(&image, "S39-C0-DLLEH6E9MRUAEW", "lone", "");
 }
 
@@ -203,7 +178,7 @@ fn balanced_reads_a_small_code_from_a_lone_finder_pattern_next_to_a_read_code() 
 /// copy of the symbol, it does.
 #[test]
 fn balanced_reads_a_located_small_code_through_its_sharpened_module_grid() {
-    let image = multicode_frame(23, 0.867, 2.516, 76);
+    let image = multicode::frame(23, 0.867, 2.516, 76).image;
     assert_read_by(
         &image,
         "S23-C4-VVNAOM7ZP",
@@ -218,6 +193,6 @@ fn balanced_reads_a_located_small_code_through_its_sharpened_module_grid() {
 /// symbol, it does (before, only `thorough`'s whole-frame passes read it).
 #[test]
 fn balanced_reads_a_code_located_by_the_sharpened_read_through_its_module_grid() {
-    let image = multicode_frame(33, 1.078, 3.851, 85);
+    let image = multicode::frame(33, 1.078, 3.851, 85).image;
     assert_read_by(&image, "S33-C3-GR", "rxing sharpened", "");
 }

@@ -162,6 +162,12 @@ impl Crop {
     pub fn of_region(image: &GrayImage, region: &Region) -> Option<Self> {
         let margin = CROP_MARGIN_SHARE * (region.hi_u - region.lo_u).max(region.hi_v - region.lo_v)
             + CROP_MARGIN_PX;
+        Self::with_margin(image, region, margin)
+    }
+
+    /// `region` widened by `margin` px on every side, clamped to the image.
+    #[must_use]
+    pub fn with_margin(image: &GrayImage, region: &Region, margin: f64) -> Option<Self> {
         let max_u = (image.width() - 1) as f64;
         let max_v = (image.height() - 1) as f64;
         let x0 = (region.lo_u - margin).clamp(0.0, max_u).floor() as usize;
@@ -178,6 +184,12 @@ impl Crop {
             x0,
             y0,
         })
+    }
+
+    /// A source pixel position in the crop's pixels.
+    #[must_use]
+    pub fn to_crop(&self, p: &PixelPoint) -> PixelPoint {
+        PixelPoint::new(p.u() - self.x0 as f64, p.v() - self.y0 as f64)
     }
 
     /// A candidate found in the crop, in source pixels.

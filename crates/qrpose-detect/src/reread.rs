@@ -19,6 +19,7 @@ use super::decode::GrayImage;
 use super::homography::{Homography, ModulePoint};
 use crate::contain::contain;
 use crate::filters::sharpen;
+use crate::region::{Crop, Region};
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// Side of the square window of module centres whose mean is a module's threshold.
@@ -168,36 +169,14 @@ fn sharpened_patch(
     image: &GrayImage,
     corners_px: &[PixelPoint; 4],
 ) -> Option<(GrayImage, [PixelPoint; 4])> {
-    let (w, h) = (image.width(), image.height());
-    let bound = |f: fn(f64, f64) -> f64, init: f64, coord: fn(&PixelPoint) -> f64| {
-        corners_px.iter().map(coord).fold(init, f)
-    };
-    let lo_u = bound(f64::min, f64::INFINITY, PixelPoint::u) - PATCH_MARGIN_PX;
-    let lo_v = bound(f64::min, f64::INFINITY, PixelPoint::v) - PATCH_MARGIN_PX;
-    let hi_u = bound(f64::max, f64::NEG_INFINITY, PixelPoint::u) + PATCH_MARGIN_PX;
-    let hi_v = bound(f64::max, f64::NEG_INFINITY, PixelPoint::v) + PATCH_MARGIN_PX;
-    if !(lo_u.is_finite() && lo_v.is_finite() && hi_u.is_finite() && hi_v.is_finite()) {
-        return None;
-    }
-    let x0 = lo_u.clamp(0.0, (w - 1) as f64).floor() as usize;
-    let y0 = lo_v.clamp(0.0, (h - 1) as f64).floor() as usize;
-    let x1 = hi_u.clamp(0.0, (w - 1) as f64).ceil() as usize;
-    let y1 = hi_v.clamp(0.0, (h - 1) as f64).ceil() as usize;
-    let (pw, ph) = (x1.checked_sub(x0)? + 1, y1.checked_sub(y0)? + 1);
-    let mut pixels = Vec::with_capacity(pw * ph);
-    for row in image.pixels().chunks_exact(w).skip(y0).take(ph) {
-        pixels.extend_from_slice(row.get(x0..x0 + pw)?);
-    }
+    let region = Region::around(corners_px, PATCH_MARGIN_PX)?;
+    let crop = Crop::with_margin(image, &region, 0.0)?;
     let patch = sharpen(
-        &GrayImage::new(pw, ph, pixels)?,
+        crop.image.as_ref()?,
         REREAD_SHARPEN_SIGMA_PX,
         REREAD_SHARPEN_AMOUNT,
     )?;
-    let (dx, dy) = (x0 as f64, y0 as f64);
-    Some((
-        patch,
-        corners_px.map(|p| PixelPoint::new(p.u() - dx, p.v() - dy)),
-    ))
+    Some((patch, corners_px.map(|p| crop.to_crop(&p))))
 }
 
 #[cfg(test)]

@@ -26,7 +26,7 @@ use rxing::qrcode::cpp_port::detector::{
     FindFinderPatterns, FinderPatternSet, GenerateFinderPatternSets, SampleQR,
 };
 use rxing::qrcode::detector::QRCodeDetectorResult;
-use rxing::{BarcodeFormat, Binarizer, Luma8Source, LuminanceSource, RXingResult};
+use rxing::{BarcodeFormat, Binarizer, Luma8Source, LuminanceSource, Point, RXingResult};
 
 /// rxing behind the [`Detector`] interface.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -111,19 +111,11 @@ fn read<B: Binarizer>(binarizer: &B, located: bool) -> Read {
         let module_count = usize::try_from(sampled.getBits().getWidth()).ok();
         let result =
             RXingResult::with_decoder_result(decoded, sampled.getPoints(), BarcodeFormat::QR_CODE);
-        let points = result.getPoints();
-        let corner = |i: usize| {
-            points
-                .get(i)
-                .map(|p| PixelPoint::new(f64::from(p.x), f64::from(p.y)))
-        };
-        // rxing lists the quadrilateral as top-left, top-right, bottom-left, bottom-right.
-        let (Some(tl), Some(tr), Some(bl), Some(br)) = (corner(0), corner(1), corner(2), corner(3))
-        else {
+        let Some(corners_px) = qr_corners(result.getPoints()) else {
             continue;
         };
         found.push(Candidate {
-            corners_px: [tl, tr, br, bl],
+            corners_px,
             payload: Some(result.getRawBytes().to_vec()),
             text: Some(result.getText().to_owned()),
             module_count,
@@ -144,24 +136,25 @@ fn read<B: Binarizer>(binarizer: &B, located: bool) -> Read {
 /// A symbol whose grid was sampled but did not decode: its sampled corners (qr order) and
 /// module count, no payload.
 fn undecoded(sampled: &QRCodeDetectorResult) -> Option<Candidate> {
-    let points = sampled.getPoints();
-    let corner = |i: usize| {
-        points
-            .get(i)
-            .map(|p| PixelPoint::new(f64::from(p.x), f64::from(p.y)))
-    };
-    // Sampled as top-left, top-right, bottom-left, bottom-right, as a decoded result lists them.
-    let (Some(tl), Some(tr), Some(bl), Some(br)) = (corner(0), corner(1), corner(2), corner(3))
-    else {
-        return None;
-    };
     Some(Candidate {
-        corners_px: [tl, tr, br, bl],
+        corners_px: qr_corners(sampled.getPoints())?,
         payload: None,
         text: None,
         module_count: usize::try_from(sampled.getBits().getWidth()).ok(),
         backend: Backend::Rxing,
     })
+}
+
+/// The corners of a quadrilateral as rxing lists them (top-left, top-right, bottom-left,
+/// bottom-right, for decoded and sampled symbols alike) in qr order; `None` when fewer than
+/// four.
+fn qr_corners(points: &[Point]) -> Option<[PixelPoint; 4]> {
+    let corner = |i: usize| {
+        points
+            .get(i)
+            .map(|p| PixelPoint::new(f64::from(p.x), f64::from(p.y)))
+    };
+    Some([corner(0)?, corner(1)?, corner(3)?, corner(2)?])
 }
 
 /// The region of an unread finder-pattern triple.
