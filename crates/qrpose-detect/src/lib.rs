@@ -34,6 +34,7 @@ pub mod contain;
 pub mod corners;
 pub mod decode;
 pub mod filters;
+mod finder_scan;
 pub mod finders;
 pub mod global_binarizer;
 pub mod gray;

@@ -15,6 +15,7 @@ use super::decode::GrayImage;
 use super::{Backend, Candidate, Detector};
 use crate::binarizer::Precomputed;
 use crate::contain::contain;
+use crate::finder_scan::find_finder_patterns;
 use crate::global_binarizer::global_binarizer;
 use crate::pairs::FinderPattern;
 use crate::region::Region;
@@ -22,9 +23,7 @@ use qrpose_core::geometry::frames::PixelPoint;
 use rxing::common::cpp_essentials::concentric_finder::ConcentricPattern;
 use rxing::common::{BitArray, BitMatrix, DetectorRXingResult};
 use rxing::qrcode::cpp_port::decoder::Decode;
-use rxing::qrcode::cpp_port::detector::{
-    FindFinderPatterns, FinderPatternSet, GenerateFinderPatternSets, SampleQR,
-};
+use rxing::qrcode::cpp_port::detector::{FinderPatternSet, GenerateFinderPatternSets, SampleQR};
 use rxing::qrcode::detector::QRCodeDetectorResult;
 use rxing::{BarcodeFormat, Binarizer, Luma8Source, LuminanceSource, Point, RXingResult};
 
@@ -88,7 +87,7 @@ fn read<B: Binarizer>(binarizer: &B, located: bool) -> Read {
     let Ok(binary) = binarizer.get_black_matrix() else {
         return Read::default();
     };
-    let mut patterns = FindFinderPatterns(binary, true, 0);
+    let mut patterns = find_finder_patterns(binary);
     let mut used: Vec<ConcentricPattern> = Vec::new();
     let mut found = Vec::new();
     let mut unread = Vec::new();
