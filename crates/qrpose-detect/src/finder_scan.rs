@@ -6,6 +6,7 @@
 //! same order (`tests::finds_what_rxing_finds`); the checks of each candidate are rxing's
 //! own public functions.
 
+use crate::rxing::WORD_BITS;
 use rxing::Point;
 use rxing::common::BitMatrix;
 use rxing::common::cpp_essentials::{
@@ -23,8 +24,6 @@ const PATTERN: FixedPattern<BARS, MODULES, false> = FixedPattern::new([1, 1, 3, 
 /// Rows scanned: every third, as rxing and zxing-cpp do when trying harder (a finder's
 /// centre is at least 3 px tall at 1 px per module).
 const ROW_STEP: usize = 3;
-/// Bits per word of rxing's bit matrix.
-const WORD_BITS: usize = usize::BITS as usize;
 
 /// The finder patterns of `image`, as `FindFinderPatterns(image, true, 0)` returns them.
 /// Rows wider than a run length can count (65 535 px) go to rxing's own search.
