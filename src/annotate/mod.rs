@@ -121,3 +121,6 @@ pub(crate) fn redrawn(
         OutputFormat::Png => codec::encode_png(&raster),
     }
 }
+
+#[cfg(test)]
+mod tests;
