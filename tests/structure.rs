@@ -99,3 +99,117 @@ fn no_source_file_is_over_500_lines() {
         .collect();
     assert!(long.is_empty(), "split these: {long:?}");
 }
+
+/// Longest README, in lines: a user's page, not a lab notebook (docs/measurements/ keeps the
+/// dated logs).
+const README_MAX_LINES: usize = 250;
+
+/// The two commands a fresh machine with only the Rust toolchain runs first.
+const FIRST_COMMANDS: [&str; 2] = ["cargo run --release -- serve", "cargo test"];
+
+#[test]
+fn the_readme_is_short_and_starts_with_the_two_commands() {
+    let readme = std::fs::read_to_string(Path::new(ROOT).join("README.md")).expect("README.md");
+    let lines = readme.lines().count();
+    assert!(
+        lines <= README_MAX_LINES,
+        "README.md has {lines} lines, at most {README_MAX_LINES}"
+    );
+    let head: String = readme.lines().take(20).collect::<Vec<_>>().join("\n");
+    for command in FIRST_COMMANDS {
+        assert!(
+            head.contains(command),
+            "README.md's first 20 lines lack `{command}`"
+        );
+    }
+}
+
+/// Whether `word` looks like an abbreviated or full git commit hash: 7-40 lowercase hex
+/// digits with at least one digit and one letter a-f (so neither a number nor a word like
+/// "deadbeef"; a SHA-256 is 64 and never matches).
+fn is_hash_like(word: &str) -> bool {
+    (7..=40).contains(&word.len())
+        && word
+            .bytes()
+            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+        && word.bytes().any(|b| b.is_ascii_digit())
+        && word.bytes().any(|b| b.is_ascii_alphabetic())
+}
+
+/// The commit hashes cited in `text`: hash-like words in backticks (`4a75b23`) or after the
+/// word "commit" / "commits". Words are maximal runs of ASCII letters and digits, so a hex
+/// colour (`#ff00ff`) or a truncated SHA-256 after "sha256" is not one.
+fn cited_commit_hashes(text: &str) -> Vec<String> {
+    let bytes = text.as_bytes();
+    let mut found = Vec::new();
+    let mut previous_word = "";
+    let mut previous_end = 0;
+    let mut start = 0;
+    while start < bytes.len() {
+        if !bytes[start].is_ascii_alphanumeric() {
+            start += 1;
+            continue;
+        }
+        let end = bytes[start..]
+            .iter()
+            .position(|b| !b.is_ascii_alphanumeric())
+            .map_or(bytes.len(), |n| start + n);
+        let word = &text[start..end];
+        let in_backticks = start > 0 && bytes[start - 1] == b'`' && bytes.get(end) == Some(&b'`');
+        let after_commit = matches!(previous_word, "commit" | "commits" | "Commit" | "Commits")
+            && text[previous_end..start].chars().all(char::is_whitespace);
+        if is_hash_like(word) && (in_backticks || after_commit) {
+            found.push(word.to_owned());
+        }
+        previous_word = word;
+        previous_end = end;
+        start = end;
+    }
+    found
+}
+
+#[test]
+fn the_commit_hash_pattern_flags_commits_and_spares_hashes_and_colours() {
+    assert_eq!(cited_commit_hashes("at commit 4a75b23, then"), ["4a75b23"]);
+    assert_eq!(cited_commit_hashes("commits 7df67bc and"), ["7df67bc"]);
+    assert_eq!(
+        cited_commit_hashes("the tree at `ec49edb` plus"),
+        ["ec49edb"]
+    );
+    let sha256 = "9f86d081884c7d659a2feaa0c55ad015a3bf4f1b2b0b822cd15d6c15b0f00a08";
+    for innocent in [
+        "yellow `#ffff00`, magenta `#ff00ff`",
+        "frames sha256 2419489fe886",
+        &format!("its sha256 `{sha256}`") as &str,
+        "commit deadbeef and commit 1234567",
+        "4a75b23 without a cue",
+        "a commit, 4a75b23",
+    ] {
+        assert!(cited_commit_hashes(innocent).is_empty(), "{innocent}");
+    }
+}
+
+#[test]
+fn no_commit_hash_in_the_readme_or_the_reference_pages() {
+    let mut pages = vec![Path::new(ROOT).join("README.md")];
+    for entry in std::fs::read_dir(Path::new(ROOT).join("docs")).expect("docs/") {
+        let path = entry.expect("an entry").path();
+        if path.is_file() && path.extension().is_some_and(|e| e == "md") {
+            pages.push(path);
+        }
+    }
+    assert!(pages.len() > 5, "{pages:?}");
+    let cited: Vec<String> = pages
+        .iter()
+        .flat_map(|page| {
+            let text = std::fs::read_to_string(page).expect("utf-8");
+            cited_commit_hashes(&text)
+                .into_iter()
+                .map(move |hash| format!("{}: {hash}", page.display()))
+        })
+        .collect();
+    assert!(
+        cited.is_empty(),
+        "commit hashes belong in docs/measurements/ only: {cited:?}"
+    );
+}
