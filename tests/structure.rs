@@ -70,6 +70,23 @@ fn the_core_and_the_detector_pull_in_no_async_or_http_crate() {
     );
 }
 
+/// The JPEG splice (crates/jpeg-overlay) is a codec library of its own: no async or HTTP
+/// crate, no image decoder or encoder (those are its tests' dev-dependencies), nothing of
+/// qrpose.
+#[test]
+fn the_jpeg_splice_pulls_in_no_async_http_or_image_crate() {
+    let names = dependency_names("jpeg-overlay");
+    assert!(names.iter().any(|n| n == "thiserror"), "{names:?}");
+    // Every qrpose crate depends on qrpose-core.
+    let others = ["image", "zune-jpeg", "jpeg-encoder", "qrpose-core"];
+    for forbidden in SERVICE_ONLY.iter().chain(&others) {
+        assert!(
+            !names.iter().any(|n| n == forbidden),
+            "jpeg-overlay depends on {forbidden}"
+        );
+    }
+}
+
 /// Every `.rs` file under `dir`.
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     for entry in std::fs::read_dir(dir).expect("a readable directory") {

@@ -3,15 +3,15 @@
 //!
 //! [`overlay`] turns an image response and its camera into pixel primitives (outlines,
 //! corner marks, payload labels, the projected axes of each pose); [`raster`] draws them.
-//! A JPEG photo asked for as JPEG is spliced ([`jpeg_splice`]): only the 8×8 blocks the
-//! overlay touches are re-encoded, the rest keeps the client's bytes. Otherwise, and
-//! whenever the splice cannot be exact, [`codec`] decodes the whole photo in colour and
-//! encodes the result as JPEG or PNG. Colours and what is drawn are listed in
-//! docs/service.md, The annotated image. The library crates know nothing of this: drawing
-//! is a concern of the service and the CLI.
+//! A JPEG photo asked for as JPEG is spliced by the `jpeg-overlay` crate
+//! (crates/jpeg-overlay): only the 8×8 blocks the overlay touches are re-encoded, the rest
+//! keeps the client's bytes. Otherwise, and whenever the splice cannot be exact, [`codec`]
+//! decodes the whole photo in colour and encodes the result as JPEG or PNG. Colours and
+//! what is drawn are listed in docs/service.md, The annotated image. The pose crates know
+//! nothing of this: drawing is a concern of the service and the CLI; the splice only
+//! records and encodes the pixels it is given.
 
 pub mod codec;
-pub mod jpeg_splice;
 pub mod overlay;
 pub mod raster;
 
@@ -19,6 +19,7 @@ use crate::api::image::ImageResponse;
 use crate::detect::decode::{ImageFormat, sniff_format};
 use crate::geometry::camera::Camera;
 pub use codec::CodecError;
+use jpeg_overlay::{CannotSplice, Jpeg};
 use overlay::Overlay;
 use raster::{RgbRaster, Style};
 
@@ -53,7 +54,7 @@ impl OutputFormat {
 /// The photo `bytes` with the overlay of `response` drawn on it, encoded as `format`.
 /// `camera` must be the one the poses of `response` were computed with (it projects their
 /// axes). CPU-bound: a JPEG asked for as JPEG is spliced (only the blocks drawn into are
-/// re-encoded); anything else, or a JPEG [`jpeg_splice`] refuses, is decoded, drawn and
+/// re-encoded); anything else, or a JPEG the splice refuses, is decoded, drawn and
 /// encoded whole.
 ///
 /// # Errors
@@ -96,10 +97,10 @@ fn spliced(
     bytes: &[u8],
     size_px: (usize, usize),
     overlay_for: &impl Fn(f64) -> Overlay,
-) -> Result<Vec<u8>, jpeg_splice::CannotSplice> {
-    let jpeg = jpeg_splice::Jpeg::parse(bytes)?;
+) -> Result<Vec<u8>, CannotSplice> {
+    let jpeg = Jpeg::parse(bytes)?;
     if (jpeg.width_px(), jpeg.height_px()) != size_px {
-        return Err(jpeg_splice::CannotSplice::SizeMismatch);
+        return Err(CannotSplice::SizeMismatch);
     }
     let style = Style::for_image(jpeg.width_px(), jpeg.height_px());
     let mut drawing = jpeg.canvas();

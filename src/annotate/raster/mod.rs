@@ -1,6 +1,6 @@
 //! Draws an [`Overlay`] onto a [`Canvas`]: an 8-bit RGB raster ([`RgbRaster`]), or a record of
-//! the pixels written MCU by MCU ([`super::jpeg_splice::Drawing`], for re-encoding only the
-//! JPEG blocks they touch). Solid colours, no anti-aliasing, so that every drawn pixel has
+//! the pixels written MCU by MCU ([`jpeg_overlay::Drawing`], for re-encoding only the JPEG
+//! blocks they touch). Solid colours, no anti-aliasing, so that every drawn pixel has
 //! exactly its primitive's colour (the pixel tests rely on it).
 //!
 //! Sizes grow with the image ([`Style::for_image`]) so the overlay reads the same on a phone
@@ -109,6 +109,25 @@ impl Canvas for RgbRaster {
                 pixel.copy_from_slice(&colour.0);
             }
         }
+    }
+}
+
+/// The splice's canvas: the same writes, recorded MCU by MCU.
+impl Canvas for jpeg_overlay::Drawing {
+    fn width_px(&self) -> usize {
+        jpeg_overlay::Drawing::width_px(self)
+    }
+
+    fn height_px(&self) -> usize {
+        jpeg_overlay::Drawing::height_px(self)
+    }
+
+    fn put(&mut self, x: i64, y: i64, colour: Rgb) {
+        jpeg_overlay::Drawing::put(self, x, y, colour.0);
+    }
+
+    fn put_row(&mut self, from: i64, to: i64, y: i64, colour: Rgb) {
+        jpeg_overlay::Drawing::put_row(self, from, to, y, colour.0);
     }
 }
 

@@ -1,7 +1,8 @@
 //! The annotated image as the service makes it ([`super::annotated_with`]): JPEGs made here
 //! with `jpeg-encoder` from generated pixels, a fixed overlay. [`pinned`]: the bytes out,
-//! pinned.
+//! pinned; [`fallback`]: when the splice is used, and what is drawn when it cannot be.
 
+mod fallback;
 mod pinned;
 
 use super::overlay::{Label, OUTLINE, Overlay, Rgb, Segment, X_AXIS, Y_AXIS, Z_AXIS};

@@ -1,8 +1,8 @@
 //! The annotated JPEG's bytes, pinned: SHA-256 digests recorded from the splice as it was
-//! inside the service crate (`src/annotate/jpeg_splice`), before it moved to its own crate.
-//! Moving the code, or reorganising it later, must not change a byte the service answers
-//! with: a client comparing annotated images, or a cache keyed on them, would see every
-//! one change. A deliberate change of the output (another rounding, other ZRL placement)
+//! inside the service crate (`src/annotate/jpeg_splice`), before it moved to its own crate
+//! (`jpeg-overlay`, crates/jpeg-overlay), and unchanged by the move. Moving the code, or
+//! reorganising it later, must not change a byte the service answers with: a client
+//! comparing annotated images, or a cache keyed on them, would see every one change. A deliberate change of the output (another rounding, other ZRL placement)
 //! records new digests here and says why in its commit.
 //!
 //! The inputs are made here with `jpeg-encoder` (its integer DCT, the same bytes with and

@@ -2,7 +2,6 @@
 //! inverse and forward DCT (ITU T.81 A.3.3; only the blocks the overlay touches go through
 //! them), and the JFIF colour equations.
 
-use super::super::overlay::Rgb;
 use std::f32::consts::{FRAC_1_SQRT_2, SQRT_2};
 
 /// Coefficients of one block in zigzag order, as the entropy coding reads and writes them.
@@ -272,9 +271,9 @@ pub fn chroma_table(luma: &[u16; 64]) -> [u16; 64] {
     })
 }
 
-/// JFIF's YCbCr of an sRGB colour (full range, ITU T.871).
-pub fn ycbcr(colour: Rgb) -> [f32; 3] {
-    let [r, g, b] = colour.0.map(f32::from);
+/// JFIF's YCbCr of an sRGB colour, (R, G, B) (full range, ITU T.871).
+pub fn ycbcr(colour: [u8; 3]) -> [f32; 3] {
+    let [r, g, b] = colour.map(f32::from);
     [
         0.299 * r + 0.587 * g + 0.114 * b,
         -0.168_736 * r - 0.331_264 * g + 0.5 * b + 128.0,
@@ -352,7 +351,7 @@ mod tests {
 
     #[test]
     fn grey_has_neutral_chroma() {
-        let [y, cb, cr] = ycbcr(Rgb([90, 90, 90]));
+        let [y, cb, cr] = ycbcr([90, 90, 90]);
         assert!((y - 90.0).abs() < 1e-3 && (cb - 128.0).abs() < 1e-3 && (cr - 128.0).abs() < 1e-3);
     }
 }

@@ -6,20 +6,21 @@
 use super::CannotSplice;
 use super::block::{Coefficients, Quantizer, Transform, ycbcr};
 use super::layout::{Grid, Layout};
-use crate::annotate::overlay::Rgb;
-use crate::annotate::raster::Canvas;
 
 /// An MCU drawn into.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Touched {
+pub(crate) struct Touched {
     /// The MCU's index in scan order.
     pub mcu: usize,
     /// Its tile's index in [`Drawing::tiles`].
     pub tile: usize,
 }
 
-/// The overlay recorded MCU by MCU: a [`Canvas`] that keeps, per MCU drawn into, a tile of
-/// the last colour written on each of its pixels. Writes outside the frame are dropped.
+/// The overlay recorded MCU by MCU: a canvas of the frame's size (from
+/// [`crate::Jpeg::canvas`]) that keeps, per MCU drawn into, a tile of the last colour
+/// written on each of its pixels, for [`crate::Jpeg::splice`]. Colours are sRGB, (R, G, B);
+/// pixel (x, y) is column x, row y from the top-left corner. Writes outside the frame are
+/// dropped; of several writes to one pixel the last one counts.
 #[derive(Debug, Clone)]
 pub struct Drawing {
     grid: Grid,
@@ -36,16 +37,16 @@ pub struct Drawing {
     /// Pixels per tile.
     tile_len: usize,
     /// The colours drawn.
-    palette: Vec<Rgb>,
+    palette: Vec<[u8; 3]>,
     /// The last colour drawn and its index, to skip the palette search.
-    last: Option<(Rgb, u8)>,
+    last: Option<([u8; 3], u8)>,
     /// Whether more than 255 colours were drawn (the drawing cannot be spliced).
     overflow: bool,
 }
 
 impl Drawing {
     /// Nothing drawn yet on the frame of `grid`.
-    pub fn new(grid: Grid) -> Self {
+    pub(crate) fn new(grid: Grid) -> Self {
         Self {
             grid,
             tile_of: vec![0; grid.total()],
@@ -60,7 +61,7 @@ impl Drawing {
     }
 
     /// The grid drawn on.
-    pub fn grid(&self) -> Grid {
+    pub(crate) fn grid(&self) -> Grid {
         self.grid
     }
 
@@ -68,7 +69,7 @@ impl Drawing {
     ///
     /// # Errors
     /// [`CannotSplice::Colours`] when more than 255 colours were drawn.
-    pub fn touched(&self) -> Result<Vec<Touched>, CannotSplice> {
+    pub(crate) fn touched(&self) -> Result<Vec<Touched>, CannotSplice> {
         if self.overflow {
             return Err(CannotSplice::Colours);
         }
@@ -78,12 +79,12 @@ impl Drawing {
     }
 
     /// The drawn colours in YCbCr, by palette index.
-    pub fn colours(&self) -> Vec<[f32; 3]> {
+    pub(crate) fn colours(&self) -> Vec<[f32; 3]> {
         self.palette.iter().copied().map(ycbcr).collect()
     }
 
     /// 1 + the palette index of `colour`; `None` past 255 colours.
-    fn colour_index(&mut self, colour: Rgb) -> Option<u8> {
+    fn colour_index(&mut self, colour: [u8; 3]) -> Option<u8> {
         if let Some((c, index)) = self.last
             && c == colour
         {
@@ -102,20 +103,25 @@ impl Drawing {
     }
 }
 
-impl Canvas for Drawing {
-    fn width_px(&self) -> usize {
+impl Drawing {
+    /// The frame's width, px.
+    pub fn width_px(&self) -> usize {
         self.grid.width
     }
 
-    fn height_px(&self) -> usize {
+    /// The frame's height, px.
+    pub fn height_px(&self) -> usize {
         self.grid.height
     }
 
-    fn put(&mut self, x: i64, y: i64, colour: Rgb) {
+    /// Sets pixel (`x`, `y`) to `colour` (R, G, B) when it lies inside the frame.
+    pub fn put(&mut self, x: i64, y: i64, colour: [u8; 3]) {
         self.put_row(x, x.saturating_add(1), y, colour);
     }
 
-    fn put_row(&mut self, from: i64, to: i64, y: i64, colour: Rgb) {
+    /// Sets the pixels `from..to` of row `y` that lie inside the frame to `colour`
+    /// (R, G, B), as [`Self::put`] on each.
+    pub fn put_row(&mut self, from: i64, to: i64, y: i64, colour: [u8; 3]) {
         let clip = |v: i64, size: usize| usize::try_from(v.max(0)).unwrap_or(0).min(size);
         let (from, to) = (clip(from, self.grid.width), clip(to, self.grid.width));
         let Ok(y) = usize::try_from(y) else {
@@ -177,7 +183,7 @@ impl Drawing {
     /// their mean (a box filter). A block drawn over entirely is encoded from the drawing
     /// alone (one of one colour as its DC); a block whose samples do not change keeps its
     /// coefficients.
-    pub fn draw(
+    pub(crate) fn draw(
         &self,
         touched: Touched,
         colours: &[[f32; 3]],

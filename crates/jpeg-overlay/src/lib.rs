@@ -1,9 +1,32 @@
-//! Annotated JPEGs without re-encoding the photo: only the 8×8 blocks the overlay touches are
-//! encoded anew; every other block keeps the client's bits.
+//! Draw on a JPEG without re-encoding it: only the 8×8 blocks an overlay touches are
+//! encoded anew; every other block keeps the file's bits, and every header (EXIF, ICC, the
+//! quantization and Huffman tables) its bytes.
 //!
-//! Decoding a whole frame in colour and encoding it again cost several times the detection
-//! (docs/service.md, The annotated image, Cost). The overlay covers a few percent of the
-//! frame, so instead:
+//! ```
+//! use jpeg_overlay::{CannotSplice, Jpeg};
+//!
+//! /// `file` with a magenta bar drawn across pixels 10..30 of rows 12 and 13; `Err` when
+//! /// the file cannot be spliced (the caller then draws on the decoded frame instead).
+//! fn with_bar(file: &[u8]) -> Result<Vec<u8>, CannotSplice> {
+//!     let jpeg = Jpeg::parse(file)?;
+//!     let mut drawing = jpeg.canvas();
+//!     for y in 12..14 {
+//!         drawing.put_row(10, 30, y, [255, 0, 255]);
+//!     }
+//!     Ok(jpeg.splice(&drawing)?.bytes)
+//! }
+//! # let mut file = Vec::new();
+//! # jpeg_encoder::Encoder::new(&mut file, 90)
+//! #     .encode(&[128; 64 * 48 * 3], 64, 48, jpeg_encoder::ColorType::Rgb)
+//! #     .map_err(|e| e.to_string())?;
+//! # assert_ne!(with_bar(&file)?, file);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! Decoding a whole frame in colour and encoding it again costs several times what reading
+//! a QR code in it does, and changes every pixel the client sent (the qrpose repository's
+//! docs/service.md, The annotated image, gives the measured cost). An overlay covers a few
+//! percent of the frame, so instead:
 //!
 //! 1. [`Jpeg::parse`] reads the headers and refuses what cannot be spliced exactly (below).
 //! 2. The overlay is drawn onto a [`Drawing`] (from [`Jpeg::canvas`]), not a raster: a
@@ -26,34 +49,35 @@
 //!    put before end-of-block codes: no coefficient changes) make the new bits before them
 //!    a whole number of bytes longer or shorter than the old; otherwise they are copied
 //!    with a bit shift (stuffing undone on reading and done again on writing). The
-//!    interval is padded with 1 bits and followed by its RST marker. Intervals without a drawn MCU are copied byte
-//!    for byte; the file's trailer (EOI, anything after it) ends the output, and an EOI
-//!    when the file had none. All headers
-//!    (APPn with EXIF and ICC, DQT, DHT, SOF, DRI, SOS) stay byte-identical.
+//!    interval is padded with 1 bits and followed by its RST marker. Intervals without a
+//!    drawn MCU are copied byte for byte; the file's trailer (EOI, anything after it) ends
+//!    the output, and an EOI when the file had none. All headers (APPn with EXIF and ICC,
+//!    DQT, DHT, SOF, DRI, SOS) stay byte-identical.
 //!
-//! A grey (one-component) frame cannot hold the overlay's colours, so it becomes YCbCr
-//! 4:4:4 with one scan per component: its SOF is rewritten for three components, a DQT
-//! (the typical chrominance table of ITU T.81 Annex K, scaled like the file's luminance
-//! table) and a DHT (the typical chrominance Huffman tables) go before its SOS in slots
-//! luma does not use, its luma scan is spliced as above, and two chroma scans follow it:
-//! zero blocks (half a byte each) except where the overlay is drawn. Other headers and
-//! the luma scan's SOS stay byte-identical, and decoders give the photo's pixels exactly
-//! (zero chroma is neutral). libjpeg, zune-jpeg and the `image` crate read such files; a
-//! grey frame with restart markers falls back, because zune-jpeg 0.5 misreads restart
-//! markers in JPEGs of one scan per component.
+//! A grey (one-component) frame cannot hold colours, so it becomes YCbCr 4:4:4 with one
+//! scan per component: its SOF is rewritten for three components, a DQT (the typical
+//! chrominance table of ITU T.81 Annex K, scaled like the file's luminance table) and a
+//! DHT (the typical chrominance Huffman tables) go before its SOS in slots luma does not
+//! use, its luma scan is spliced as above, and two chroma scans follow it: zero blocks
+//! (half a byte each) except where the overlay is drawn. Other headers and the luma scan's
+//! SOS stay byte-identical, and decoders give the photo's pixels exactly (zero chroma is
+//! neutral). libjpeg, zune-jpeg and the `image` crate read such files; a grey frame with
+//! restart markers is refused, because zune-jpeg 0.5 misreads restart markers in JPEGs of
+//! one scan per component.
 //!
 //! Spliced: baseline or extended sequential Huffman JPEG (SOF0, SOF1), 8-bit samples, one
 //! component (grey) or three that are YCbCr (JFIF, or no Adobe APP14 marker, or its
 //! transform 1; not component ids `R`, `G`, `B`), one scan holding every component,
 //! sampling factors 1-2 (4:2:0, 4:2:2, 4:4:0, 4:4:4), with or without a restart interval.
-//! Everything else returns a [`CannotSplice`] and `annotated_image` decodes, draws and
-//! re-encodes the whole frame instead: progressive, arithmetic-coded, lossless or
-//! hierarchical JPEG, 12-bit samples, CMYK or YCCK (four components), RGB (Adobe
-//! transform 0 or ids `R`, `G`, `B`), several scans, a DNL marker, a grey frame with
-//! restart markers, a Huffman table lacking a code a re-encoded block needs (optimized
-//! tables leave out unused symbols), more than 255 colours drawn, and data that does not
-//! decode. Nothing here indexes untrusted bytes in a way that can panic: a malformed file
-//! is refused, never trusted.
+//! Everything else returns a [`CannotSplice`], and the caller decodes, draws and encodes
+//! the whole frame instead: progressive, arithmetic-coded, lossless or hierarchical JPEG,
+//! 12-bit samples, CMYK or YCCK (four components), RGB (Adobe transform 0 or ids `R`, `G`,
+//! `B`), several scans, a DNL marker, a grey frame with restart markers, a Huffman table
+//! lacking a code a re-encoded block needs (optimized tables leave out unused symbols),
+//! more than 255 colours drawn, and data that does not decode. Nothing here indexes
+//! untrusted bytes in a way that can panic: a malformed file is refused, never trusted.
+
+#![warn(missing_docs)]
 
 mod align;
 mod block;
@@ -72,8 +96,9 @@ use markers::Headers;
 
 /// Why a JPEG cannot be spliced; the caller re-encodes the whole frame instead.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
 pub enum CannotSplice {
-    /// Not a JPEG this module can read: broken headers, misplaced markers.
+    /// Not a JPEG this crate can read: broken headers, misplaced markers.
     #[error("malformed JPEG: {0}")]
     Malformed(&'static str),
     /// Progressive JPEG (SOF2).
@@ -160,7 +185,7 @@ impl<'a> Jpeg<'a> {
     /// Reads the headers of `file`.
     ///
     /// # Errors
-    /// [`CannotSplice`] when the file is no JPEG this module splices exactly.
+    /// [`CannotSplice`] when the file is no JPEG this crate splices exactly.
     pub fn parse(file: &'a [u8]) -> Result<Self, CannotSplice> {
         let headers = markers::parse(file)?;
         if headers.components.len() == 1 && headers.restart_interval > 0 {
@@ -309,3 +334,8 @@ impl<'a> Jpeg<'a> {
 
 #[cfg(test)]
 mod tests;
+
+/// The README's example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;

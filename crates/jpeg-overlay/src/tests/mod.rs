@@ -1,80 +1,24 @@
 //! The splice against whole-frame decoding: JPEGs made here with `jpeg-encoder` in each
 //! sampling, grey and with restart intervals, spliced, and decoded by zune-jpeg and by the
 //! `image` crate. Outside the MCUs drawn into every pixel is the original's; inside, the
-//! drawn pixels have their colours. [`fallback`]: what cannot be spliced falls back to the
-//! whole-frame path, and broken data never panics.
+//! drawn pixels have their colours. The marks drawn are the qrpose service's ([`marks`]).
+//! [`fallback`]: what cannot be spliced is refused with its reason, and broken data never
+//! panics.
 
 mod fallback;
+mod marks;
 mod runs;
 
 use super::*;
-use crate::annotate::overlay::{
-    CORNER_MARK, Label, OUTLINE, Overlay, Rgb, Segment, X_AXIS, Y_AXIS, Z_AXIS,
-};
-use crate::annotate::raster::{Canvas, RgbRaster, Style, draw_overlay};
-use crate::annotate::{OutputFormat, annotated_with, codec, redrawn};
 use jpeg_encoder::{ColorType, Encoder, SamplingFactor};
-
-/// One recorded pixel write.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct PixelWrite {
-    /// Column, px.
-    x: u32,
-    /// Row, px.
-    y: u32,
-    /// The colour written.
-    colour: Rgb,
-}
-
-/// The writes of a drawing, in order: which pixels the overlay sets, and to what. Writes
-/// outside the canvas are dropped; of several writes to one pixel the last one counts.
-#[derive(Debug, Clone, PartialEq, Eq)]
-struct PixelWrites {
-    width_px: usize,
-    height_px: usize,
-    writes: Vec<PixelWrite>,
-}
-
-impl PixelWrites {
-    /// No writes yet on a `width_px` × `height_px` canvas (at most `u32::MAX` a side: larger
-    /// canvases record nothing).
-    fn new(width_px: usize, height_px: usize) -> Self {
-        Self {
-            width_px,
-            height_px,
-            writes: Vec::new(),
-        }
-    }
-
-    /// The writes, in drawing order.
-    fn writes(&self) -> &[PixelWrite] {
-        &self.writes
-    }
-}
-
-impl Canvas for PixelWrites {
-    fn width_px(&self) -> usize {
-        self.width_px
-    }
-
-    fn height_px(&self) -> usize {
-        self.height_px
-    }
-
-    fn put(&mut self, x: i64, y: i64, colour: Rgb) {
-        let (Ok(x), Ok(y)) = (u32::try_from(x), u32::try_from(y)) else {
-            return;
-        };
-        if (x as usize) < self.width_px && (y as usize) < self.height_px {
-            self.writes.push(PixelWrite { x, y, colour });
-        }
-    }
-}
+use marks::{CORNER_MARK, OUTLINE, PixelWrites, X_AXIS, Y_AXIS, Z_AXIS};
+use zune_jpeg::JpegDecoder;
+use zune_jpeg::zune_core::bytestream::ZCursor;
+use zune_jpeg::zune_core::colorspace::ColorSpace;
+use zune_jpeg::zune_core::options::DecoderOptions;
 
 const WIDTH: u16 = 203;
 const HEIGHT: u16 = 141;
-/// The test photos' size as the detection's decode reports it, (width, height) px.
-const SIZE_PX: (usize, usize) = (WIDTH as usize, HEIGHT as usize);
 
 /// A photo-like RGB frame: smooth shading, edges and a little deterministic noise.
 fn photo(width: u16, height: u16) -> Vec<u8> {
@@ -148,40 +92,26 @@ fn encode(options: Options, configure: impl FnOnce(&mut Encoder<&mut Vec<u8>>)) 
     out
 }
 
-/// Strokes 3 px wide in every direction, a label and corner marks, some at the frame's
-/// right and bottom edges (partial MCUs), none in the top rows nor in the last MCU (so
-/// that the scan goes on after the last re-encoded MCU).
-fn overlay() -> Overlay {
-    let segment = |from_px: [f64; 2], to_px: [f64; 2], colour: Rgb| Segment {
-        from_px,
-        to_px,
-        colour,
-    };
-    Overlay {
-        segments: vec![
-            segment([40.0, 60.0], [160.0, 70.0], OUTLINE),
-            segment([160.0, 70.0], [150.0, 130.0], OUTLINE),
-            segment([100.0, 100.0], [190.0, 100.0], X_AXIS),
-            segment([100.0, 100.0], [100.0, 40.0], Y_AXIS),
-            segment([100.0, 100.0], [60.0, 139.0], Z_AXIS),
-            segment([195.0, 50.0], [202.0, 110.0], X_AXIS),
-        ],
-        labels: vec![Label {
-            anchor_px: [30.0, 58.0],
-            below: false,
-            text: "SKU-1".to_owned(),
-        }],
-        corner_marks_px: vec![[40.0, 60.0], [160.0, 70.0], [201.0, 100.0]],
-    }
-}
-
-fn style() -> Style {
-    Style::for_image(usize::from(WIDTH), usize::from(HEIGHT))
-}
-
+/// What the service draws on a frame of this size: strokes 2 px wide in every direction, a
+/// label and corner marks 9 px across, some at the frame's right and bottom edges (partial
+/// MCUs), none in the top rows nor in the last MCU (so that the scan goes on after the last
+/// re-encoded MCU).
 fn writes() -> PixelWrites {
     let mut writes = PixelWrites::new(usize::from(WIDTH), usize::from(HEIGHT));
-    draw_overlay(&mut writes, &overlay(), &style());
+    for (from_px, to_px, colour) in [
+        ([40.0, 60.0], [160.0, 70.0], OUTLINE),
+        ([160.0, 70.0], [150.0, 130.0], OUTLINE),
+        ([100.0, 100.0], [190.0, 100.0], X_AXIS),
+        ([100.0, 100.0], [100.0, 40.0], Y_AXIS),
+        ([100.0, 100.0], [60.0, 139.0], Z_AXIS),
+        ([195.0, 50.0], [202.0, 110.0], X_AXIS),
+    ] {
+        writes.segment(from_px, to_px, 2.0, colour);
+    }
+    writes.label([30.0, 58.0], "SKU-1");
+    for at_px in [[40.0, 60.0], [160.0, 70.0], [201.0, 100.0]] {
+        writes.corner_mark(at_px, 4, 1);
+    }
     writes
 }
 
@@ -194,21 +124,52 @@ fn drawing(jpeg: &Jpeg<'_>, writes: &PixelWrites) -> Drawing {
     canvas
 }
 
-/// Decodes with zune-jpeg (the service's decoder) and with the `image` crate.
-fn decode_both(jpeg: &[u8]) -> [RgbRaster; 2] {
-    let zune = codec::decode_rgb(jpeg).expect("zune-jpeg decodes");
+/// A decoded frame, row-major RGB.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Rgb {
+    width_px: usize,
+    height_px: usize,
+    pixels: Vec<u8>,
+}
+
+impl Rgb {
+    /// Pixel (x, y).
+    fn pixel(&self, x: usize, y: usize) -> [u8; 3] {
+        let at = (y * self.width_px + x) * 3;
+        let p = &self.pixels[at..at + 3];
+        [p[0], p[1], p[2]]
+    }
+}
+
+/// `jpeg` decoded by zune-jpeg, in colour (`ColorSpace::RGB`) or grey (`ColorSpace::Luma`),
+/// `strict` or leniently as the qrpose service decodes photos to draw on.
+fn decode_zune(jpeg: &[u8], colour: ColorSpace, strict: bool) -> Result<Rgb, String> {
+    let options = DecoderOptions::default()
+        .jpeg_set_out_colorspace(colour)
+        .set_strict_mode(strict);
+    let mut decoder = JpegDecoder::new_with_options(ZCursor::new(jpeg), options);
+    let pixels = decoder.decode().map_err(|e| format!("{e:?}"))?;
+    let (width_px, height_px) = decoder.dimensions().ok_or("no frame header")?;
+    Ok(Rgb {
+        width_px,
+        height_px,
+        pixels,
+    })
+}
+
+/// Decodes with zune-jpeg (the qrpose service's decoder) and with the `image` crate.
+fn decode_both(jpeg: &[u8]) -> [Rgb; 2] {
+    let zune = decode_zune(jpeg, ColorSpace::RGB, false).expect("zune-jpeg decodes");
     let image = image::load_from_memory_with_format(jpeg, image::ImageFormat::Jpeg)
         .expect("the image crate decodes")
         .into_rgb8();
-    let (w, h) = (image.width() as usize, image.height() as usize);
-    let image = RgbRaster::new(w, h, image.into_raw()).expect("sized");
+    let (width_px, height_px) = (image.width() as usize, image.height() as usize);
+    let image = Rgb {
+        width_px,
+        height_px,
+        pixels: image.into_raw(),
+    };
     [zune, image]
-}
-
-fn pixel(raster: &RgbRaster, x: usize, y: usize) -> [u8; 3] {
-    let at = (y * raster.width_px() + x) * 3;
-    let p = &raster.pixels()[at..at + 3];
-    [p[0], p[1], p[2]]
 }
 
 /// Whether (x, y) lies in a drawn MCU grown by `margin` px (decoders interpolate
@@ -257,14 +218,13 @@ fn check_splice(jpeg: &[u8], margin: usize) -> (Spliced, f64) {
     let mut worst_error = 0.0_f64;
     for (before, after) in decode_both(jpeg).iter().zip(&decode_both(&spliced.bytes)) {
         assert_eq!(
-            (after.width_px(), after.height_px()),
+            (after.width_px, after.height_px),
             (usize::from(WIDTH), usize::from(HEIGHT))
         );
         let mut changed_outside = Vec::new();
-        for y in 0..after.height_px() {
-            for x in 0..after.width_px() {
-                if !near_drawn(&drawn, mcu, margin, x, y)
-                    && pixel(before, x, y) != pixel(after, x, y)
+        for y in 0..after.height_px {
+            for x in 0..after.width_px {
+                if !near_drawn(&drawn, mcu, margin, x, y) && before.pixel(x, y) != after.pixel(x, y)
                 {
                     changed_outside.push((x, y));
                 }
@@ -283,14 +243,14 @@ fn check_splice(jpeg: &[u8], margin: usize) -> (Spliced, f64) {
 
 /// The mean absolute error per channel, worst channel, of the written pixels of `image`
 /// against the colour last written to each.
-fn drawn_error(image: &RgbRaster, writes: &PixelWrites) -> f64 {
+fn drawn_error(image: &Rgb, writes: &PixelWrites) -> f64 {
     let mut last = std::collections::HashMap::new();
     for w in writes.writes() {
         last.insert((w.x as usize, w.y as usize), w.colour);
     }
     let mut sum = [0.0_f64; 3];
     for (&(x, y), colour) in &last {
-        for ((s, &got), &want) in sum.iter_mut().zip(&pixel(image, x, y)).zip(&colour.0) {
+        for ((s, &got), &want) in sum.iter_mut().zip(&image.pixel(x, y)).zip(colour) {
             *s += f64::from(got.abs_diff(want));
         }
     }
@@ -298,13 +258,24 @@ fn drawn_error(image: &RgbRaster, writes: &PixelWrites) -> f64 {
     sum.iter().map(|s| s / n).fold(0.0, f64::max)
 }
 
-/// [`drawn_error`] of the whole-frame path (decode, draw, encode 4:2:0 at quality 90), the
-/// worst of both decoders: what the service gave before the splice.
+/// [`drawn_error`] of the whole-frame path (decode, draw, encode 4:2:0 at quality 90, as
+/// the qrpose service does when it cannot splice), the worst of both decoders.
 fn whole_frame_error(jpeg: &[u8]) -> f64 {
-    let whole = redrawn(jpeg, OutputFormat::Jpeg, &|_| overlay()).expect("drawn");
+    let mut frame = decode_zune(jpeg, ColorSpace::RGB, false).expect("decodes");
+    let writes = writes();
+    for w in writes.writes() {
+        let at = (w.y as usize * frame.width_px + w.x as usize) * 3;
+        frame.pixels[at..at + 3].copy_from_slice(&w.colour);
+    }
+    let mut whole = Vec::new();
+    let mut encoder = Encoder::new(&mut whole, 90);
+    encoder.set_sampling_factor(SamplingFactor::F_2_2);
+    encoder
+        .encode(&frame.pixels, WIDTH, HEIGHT, ColorType::Rgb)
+        .expect("encodes");
     decode_both(&whole)
         .iter()
-        .map(|image| drawn_error(image, &writes()))
+        .map(|image| drawn_error(image, &writes))
         .fold(0.0, f64::max)
 }
 
@@ -437,7 +408,7 @@ fn a_grey_jpeg_becomes_colour_with_its_pixels_unchanged_outside_the_drawn_blocks
 #[test]
 fn the_drawn_colours_are_read_back_by_the_service_decoder() {
     // Every corner-mark pixel of the 4:4:4 splice is magenta within the tolerance the
-    // route's test uses.
+    // service's annotated-route test uses.
     let jpeg = encode(
         Options {
             sampling: SamplingFactor::F_1_1,
@@ -448,14 +419,14 @@ fn the_drawn_colours_are_read_back_by_the_service_decoder() {
     let spliced = Jpeg::parse(&jpeg)
         .and_then(|j| j.splice(&drawing(&j, &writes())))
         .expect("spliced");
-    let decoded = codec::decode_rgb(&spliced.bytes).expect("decodes");
+    let [decoded, _] = decode_both(&spliced.bytes);
     let mut marks = PixelWrites::new(usize::from(WIDTH), usize::from(HEIGHT));
-    crate::annotate::raster::draw_corner_mark(&mut marks, [40.0, 60.0], &style());
+    marks.corner_mark([40.0, 60.0], 4, 1);
     for w in marks.writes() {
-        let got = pixel(&decoded, w.x as usize, w.y as usize);
+        let got = decoded.pixel(w.x as usize, w.y as usize);
         let error = got
             .iter()
-            .zip(&CORNER_MARK.0)
+            .zip(&CORNER_MARK)
             .map(|(a, b)| a.abs_diff(*b))
             .max()
             .unwrap_or(0);
@@ -473,18 +444,43 @@ fn no_writes_give_the_file_itself() {
 }
 
 #[test]
-fn annotating_a_jpeg_splices_it() {
+fn a_row_written_at_once_is_each_of_its_pixels_written() {
+    // put_row clips to the frame like put, MCU boundaries and edges included.
     let jpeg = encode(COLOUR_420, |_| {});
-    let annotated =
-        annotated_with(&jpeg, OutputFormat::Jpeg, SIZE_PX, |_| overlay()).expect("annotated");
-    let spliced = Jpeg::parse(&jpeg)
-        .and_then(|j| j.splice(&drawing(&j, &writes())))
-        .expect("spliced");
-    assert_eq!(annotated, spliced.bytes);
-    // PNG output stays the whole-frame path.
-    let png = annotated_with(&jpeg, OutputFormat::Png, SIZE_PX, |_| overlay()).expect("annotated");
+    let parsed = Jpeg::parse(&jpeg).expect("parses");
+    let (mut rows, mut pixels) = (parsed.canvas(), parsed.canvas());
+    for (from, to, y) in [
+        (-5, 40, 3),
+        (14, 17, 31),
+        (190, 260, 140),
+        (7, 9, -1),
+        (5, 9, 141),
+    ] {
+        rows.put_row(from, to, y, X_AXIS);
+        for x in from..to {
+            pixels.put(x, y, X_AXIS);
+        }
+    }
+    let spliced = |d: &Drawing| parsed.splice(d).expect("spliced");
+    assert_eq!(spliced(&rows), spliced(&pixels));
+    assert_eq!(spliced(&rows).drawn_mcus, 3 + 2 + 2);
+}
+
+#[test]
+fn a_drawing_of_another_frame_is_refused() {
+    let small = encode(COLOUR_420, |_| {});
+    let other = Jpeg::parse(&small).expect("parses");
+    let grey = encode(
+        Options {
+            grey: true,
+            ..COLOUR_420
+        },
+        |_| {},
+    );
+    // Same size, other MCU grid (8 px MCUs instead of 16).
+    let grey = Jpeg::parse(&grey).expect("parses");
     assert_eq!(
-        png,
-        redrawn(&jpeg, OutputFormat::Png, &|_| overlay()).expect("drawn")
+        grey.splice(&other.canvas()).err(),
+        Some(CannotSplice::SizeMismatch)
     );
 }
