@@ -1,11 +1,13 @@
 #!/usr/bin/env python3
-"""Checks the deployment files without a Docker engine or a cluster (issue 6).
+"""Checks the deployment files statically, without a Docker engine or a cluster (issue 6;
+docker/smoke.sh builds and runs them for real, issue 26).
 
 Parses docker/compose.yaml and docker/k8s/*.yaml and checks that they name what the
 deployment relies on: the services and their health checks, the environment-only
 configuration, resource limits, the load balancer and its config, the probes, the non-root
 security context, the Service and the autoscaler; and that the Dockerfile keeps the
-properties hadolint does not know about (non-root user, port, health check, entrypoint).
+properties hadolint does not know about (non-root user, port, health check, entrypoint, no
+`# syntax=` line); and that nginx passes WebSocket upgrades on /v1/stream.
 
 Usage: python3 scripts/check_deploy.py   (needs PyYAML). Exit 0 when every check holds, 1
 otherwise, with one line per failed check.
@@ -31,6 +33,11 @@ def check(condition, message):
     return condition
 
 
+def default_of(value):
+    """A Compose value with its `${NAME:-default}` variables replaced by their defaults."""
+    return re.sub(r"\$\{[A-Z0-9_]+:-([^}]*)\}", r"\1", str(value))
+
+
 def load_all(path):
     with path.open(encoding="utf-8") as f:
         return [doc for doc in yaml.safe_load_all(f) if doc is not None]
@@ -40,6 +47,9 @@ def check_dockerfile():
     text = (DOCKER / "Dockerfile").read_text(encoding="utf-8")
     stages = re.findall(r"^FROM\s+(\S+)(?:\s+AS\s+(\S+))?", text, re.M | re.I)
     check(len(stages) >= 2, "Dockerfile: not a multi-stage build")
+    check(not re.search(r"^#\s*syntax\s*=", text, re.M | re.I),
+          "Dockerfile: no `# syntax=` line (BuildKit would fetch a frontend image; docker/smoke.sh "
+          "builds with none reachable)")
     check("--locked" in text and "--features zxing-cpp" in text,
           "Dockerfile: the release build must use --locked and --features zxing-cpp")
     check("cargo chef cook" in text, "Dockerfile: no separate dependency layer (cargo chef cook)")
@@ -77,14 +87,14 @@ def check_compose():
         check("cpus" in limits and "memory" in limits, f"compose: `{name}` needs CPU and memory limits")
         check(service.get("build", {}).get("dockerfile") == "docker/Dockerfile",
               f"compose: `{name}` must build docker/Dockerfile")
-    check(any(p.endswith(f":{PORT}") for p in services.get("qrpose", {}).get("ports", [])),
+    check(any(default_of(p).endswith(f":{PORT}") for p in services.get("qrpose", {}).get("ports", [])),
           f"compose: `qrpose` must publish port {PORT}")
     check(services.get("replica", {}).get("deploy", {}).get("replicas", 0) >= 2,
           "compose: `replica` needs two or more replicas")
     check("ports" not in services.get("replica", {}), "compose: replicas must not publish ports")
     lb = services.get("lb", {})
-    check(str(lb.get("image", "")).startswith(("nginx:", "traefik:")) and not str(
-        lb.get("image", "")).endswith(":latest"),
+    lb_image = default_of(lb.get("image", ""))
+    check(lb_image.startswith(("nginx:", "traefik:")) and not lb_image.endswith(":latest"),
         "compose: `lb` must be an official nginx or Traefik image pinned by tag")
     check("replica" in lb.get("depends_on", {}), "compose: `lb` must depend on `replica`")
     mounts = [v.split(":")[0] for v in lb.get("volumes", [])]
@@ -94,6 +104,14 @@ def check_compose():
     check(re.search(r"client_max_body_size\s+24m;", nginx),
           "nginx.conf: client_max_body_size must let a 24 MiB photo through")
     check(re.search(r"proxy_pass\s+http://qrpose;", nginx), "nginx.conf: proxy_pass to the upstream missing")
+    stream = re.search(r"location\s*=\s*/v1/stream\s*\{([^}]*)\}", nginx)
+    body = stream.group(1) if stream else ""
+    check(stream and re.search(r"proxy_set_header\s+Upgrade\s+\$http_upgrade;", body)
+          and re.search(r"proxy_set_header\s+Connection\s+\$connection_upgrade;", body)
+          and re.search(r"proxy_http_version\s+1\.1;", body)
+          and re.search(r"proxy_read_timeout\s+\d+[hm];", body),
+          "nginx.conf: /v1/stream must pass WebSocket upgrades (HTTP/1.1, Upgrade and Connection "
+          "headers, a read timeout in minutes or hours)")
 
 
 def probe(container, kind):
