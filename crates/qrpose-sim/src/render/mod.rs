@@ -31,7 +31,9 @@
 //! module `random`; the symbol's modules and the ground truth in module `symbol`; the
 //! rasteriser (background, lighting, supersampled symbols, lens blur by
 //! [`qrpose_detect::filters::gaussian_blur_plane`], noise, quantisation) in module `raster`;
-//! the file encoding in module `encoding`. Every public item is re-exported here.
+//! the file encoding in module `encoding`. Every public item is re-exported here, but for
+//! rendered video: a camera moving past codes placed in a world frame, frame by frame, with
+//! the truth of every code in view, in the public module [`sequence`] (docs/rendering.md).
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
@@ -41,6 +43,7 @@ mod encoding;
 mod random;
 mod raster;
 mod scene;
+pub mod sequence;
 mod symbol;
 #[cfg(test)]
 mod tests;

@@ -2,7 +2,10 @@
 //! same with one code). Background clutter and uneven lighting, each code supersampled
 //! through the camera's distortion (later codes over earlier ones), then the lens blur
 //! ([`qrpose_detect::filters::gaussian_blur_plane`], on the `f64` plane), sensor noise and
-//! 8-bit quantisation; the file is written by [`super::encode`].
+//! 8-bit quantisation; the file is written by [`super::encode`]. The pieces (a code ready to
+//! draw, the lighting, the plane over any background, the finishing effects) are shared
+//! with [`super::sequence`], whose frames have codes partly out of view, a wall fixed to the
+//! world as background, and several drawings averaged for motion blur.
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
@@ -11,18 +14,21 @@
 use super::scene::at_code;
 use super::symbol::{code_ground_truth, marker_point, module_coords, symbol_modules};
 use super::{
-    CodePlacement, Effects, Encoding, GroundTruth, MAX_SIDE_PX, MultiScene, RenderError, Rendered,
+    CodePlacement, Effects, Encoding, MAX_SIDE_PX, MultiScene, RenderError, Rendered,
     RenderedScene, Scene, encode,
 };
 use nalgebra::{Point3, Vector3};
+use qrpose_core::geometry::camera::Camera;
 use qrpose_core::geometry::frames::{CameraPoint, CameraToMarker, PixelPoint};
 use qrpose_detect::decode::GrayImage;
 use qrpose_detect::filters::gaussian_blur_plane;
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use rand_distr::{Distribution, Normal};
 
-/// A random background shape (axis-aligned ellipse or rectangle) with its grey level.
-struct Shape {
+/// A random background shape (axis-aligned ellipse or rectangle) with its grey level, in
+/// whatever 2-D coordinates its user draws it in (image px, or mm on a wall).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Shape {
     cu: f64,
     cv: f64,
     ru: f64,
@@ -32,7 +38,50 @@ struct Shape {
 }
 
 impl Shape {
-    fn contains(&self, u: f64, v: f64) -> bool {
+    /// A shape centred in `[0, width) × [0, height)`, with half-sizes in
+    /// `[min_radius, max_radius)` per axis and a grey level in 20-235.
+    pub(super) fn draw(
+        rng: &mut StdRng,
+        [width, height]: [f64; 2],
+        min_radius: f64,
+        max_radius: [f64; 2],
+    ) -> Self {
+        Self {
+            cu: rng.gen_range(0.0..width),
+            cv: rng.gen_range(0.0..height),
+            ru: rng.gen_range(min_radius..max_radius[0]),
+            rv: rng.gen_range(min_radius..max_radius[1]),
+            ellipse: rng.gen_bool(0.5),
+            level: rng.gen_range(20.0..235.0),
+        }
+    }
+
+    /// The grey level of the topmost of `shapes` (the last drawn) at (u, v), if any.
+    pub(super) fn level_at(shapes: &[Shape], u: f64, v: f64) -> Option<f64> {
+        shapes
+            .iter()
+            .rev()
+            .find(|s| s.contains(u, v))
+            .map(|s| s.level)
+    }
+
+    /// The shape's grey level.
+    pub(super) fn level(&self) -> f64 {
+        self.level
+    }
+
+    /// The shape's bounding box: (u min, u max, v min, v max).
+    pub(super) fn bounds(&self) -> [f64; 4] {
+        [
+            self.cu - self.ru,
+            self.cu + self.ru,
+            self.cv - self.rv,
+            self.cv + self.rv,
+        ]
+    }
+
+    /// Whether (u, v) lies on the shape.
+    pub(super) fn contains(&self, u: f64, v: f64) -> bool {
         let (du, dv) = ((u - self.cu) / self.ru, (v - self.cv) / self.rv);
         if self.ellipse {
             du * du + dv * dv <= 1.0
@@ -42,7 +91,8 @@ impl Shape {
     }
 }
 
-fn check_effects(e: &Effects) -> Result<(), RenderError> {
+/// Whether every effect is in range.
+pub(super) fn check_effects(e: &Effects) -> Result<(), RenderError> {
     let checks: [(&'static str, f64, f64, f64); 6] = [
         ("supersample", f64::from(e.supersample), 1.0, 16.0),
         ("blur_px", e.blur_px, 0.0, 20.0),
@@ -69,7 +119,7 @@ fn check_effects(e: &Effects) -> Result<(), RenderError> {
 
 /// A code ready to be drawn: its modules, its plane in the camera frame, and the image box
 /// (px, quiet zone included) outside which it is not looked for.
-struct Prepared {
+pub(super) struct Prepared {
     n: usize,
     modules: Vec<bool>,
     normal: Vector3<f64>,
@@ -90,20 +140,18 @@ pub(super) const MARGIN_PX: f64 = 2.0;
 const OUTLINE_SAMPLES_PER_SIDE: u32 = 16;
 
 impl Prepared {
-    /// The ground truth of a code and the code ready to be drawn.
-    fn new(
-        scene: &MultiScene,
+    /// The code ready to be drawn by `camera` in a `width_px` × `height_px` image, with `qz`
+    /// modules of quiet zone. A code whose outline does not project entirely (part of it at
+    /// or behind the camera) is looked for in the whole image.
+    ///
+    /// # Errors
+    /// [`RenderError::Encode`].
+    pub(super) fn new(
+        camera: &Camera,
+        [width_px, height_px]: [u32; 2],
         code: &CodePlacement,
         qz: f64,
-    ) -> Result<(GroundTruth, Self), RenderError> {
-        let (w, h) = (scene.width_px, scene.height_px);
-        let truth = code_ground_truth(&scene.camera, code)?;
-        let inside = |p: &[f64; 2]| {
-            p[0] >= -0.5 && p[1] >= -0.5 && p[0] <= f64::from(w) - 0.5 && p[1] <= f64::from(h) - 0.5
-        };
-        if !truth.corners_px.iter().all(inside) {
-            return Err(RenderError::OutOfView);
-        }
+    ) -> Result<Self, RenderError> {
         let (n, modules) = symbol_modules(&code.payload, code.ec_level)?;
         let nf = n as f64;
         // Pixels whose footprint may touch the symbol and its quiet zone get supersampled.
@@ -124,8 +172,7 @@ impl Prepared {
         });
         let outline: Vec<[f64; 2]> = along_sides
             .filter_map(|(u, v)| {
-                scene
-                    .camera
+                camera
                     .project(&code.pose.transform(&marker_point(u, v, &code.marker, n)))
                     .map(|p| [p.u(), p.v()])
             })
@@ -142,9 +189,9 @@ impl Prepared {
                 |(a, b, c, d), p| (a.min(p[0]), b.max(p[0]), c.min(p[1]), d.max(p[1])),
             )
         } else {
-            (0.0, f64::from(w), 0.0, f64::from(h))
+            (0.0, f64::from(width_px), 0.0, f64::from(height_px))
         };
-        let prepared = Self {
+        Ok(Self {
             n,
             modules,
             normal: code.pose.rotation() * Vector3::z(),
@@ -155,8 +202,16 @@ impl Prepared {
             umax,
             vmin,
             vmax,
-        };
-        Ok((truth, prepared))
+        })
+    }
+
+    /// Whether any pixel of a `width_px` × `height_px` image may see this code (its image
+    /// box, with the supersampling margin, meets the image).
+    pub(super) fn may_be_seen(&self, [width_px, height_px]: [u32; 2]) -> bool {
+        self.umax + MARGIN_PX >= -0.5
+            && self.vmax + MARGIN_PX >= -0.5
+            && self.umin - MARGIN_PX <= f64::from(width_px) - 0.5
+            && self.vmin - MARGIN_PX <= f64::from(height_px) - 0.5
     }
 
     /// Whether pixel (u, v) may see this code.
@@ -230,52 +285,109 @@ pub fn render(scene: &Scene, effects: &Effects) -> Result<Rendered, RenderError>
 pub fn render_scene(scene: &MultiScene, effects: &Effects) -> Result<RenderedScene, RenderError> {
     check_effects(effects)?;
     let (w, h) = (scene.width_px, scene.height_px);
-    if w == 0 || h == 0 || w > MAX_SIDE_PX || h > MAX_SIDE_PX {
-        return Err(RenderError::ImageSize {
-            width_px: w,
-            height_px: h,
-        });
-    }
+    check_size(w, h)?;
+    let inside = |p: &[f64; 2]| {
+        p[0] >= -0.5 && p[1] >= -0.5 && p[0] <= f64::from(w) - 0.5 && p[1] <= f64::from(h) - 0.5
+    };
     let mut truth = Vec::with_capacity(scene.codes.len());
     let mut codes = Vec::with_capacity(scene.codes.len());
     for (i, code) in scene.codes.iter().enumerate() {
-        let (t, p) = Prepared::new(scene, code, effects.quiet_zone_modules).map_err(at_code(i))?;
+        let t = code_ground_truth(&scene.camera, code).map_err(at_code(i))?;
+        if !t.corners_px.iter().all(inside) {
+            return Err(at_code(i)(RenderError::OutOfView));
+        }
+        let p = Prepared::new(&scene.camera, [w, h], code, effects.quiet_zone_modules)
+            .map_err(at_code(i))?;
         truth.push(t);
         codes.push(p);
     }
     let mut rng = StdRng::seed_from_u64(effects.seed);
-    let (wu, hu) = (w as usize, h as usize);
+    let (wf, hf) = (f64::from(w), f64::from(h));
     let shapes: Vec<Shape> = (0..effects.clutter)
-        .map(|_| Shape {
-            cu: rng.gen_range(0.0..f64::from(w)),
-            cv: rng.gen_range(0.0..f64::from(h)),
-            ru: rng.gen_range(5.0..f64::from(w) / 6.0),
-            rv: rng.gen_range(5.0..f64::from(h) / 6.0),
-            ellipse: rng.gen_bool(0.5),
-            level: rng.gen_range(20.0..235.0),
-        })
+        .map(|_| Shape::draw(&mut rng, [wf, hf], 5.0, [wf / 6.0, hf / 6.0]))
         .collect();
     let background_level = rng.gen_range(90.0..170.0);
-    let background = |u: f64, v: f64| {
-        shapes
-            .iter()
-            .rev()
-            .find(|s| s.contains(u, v))
-            .map_or(background_level, |s| s.level)
-    };
-    // Lighting: a gradient in a random direction plus vignetting.
-    let angle = rng.gen_range(0.0..std::f64::consts::TAU);
-    let (gx, gy) = (angle.cos(), angle.sin());
-    let diag = f64::from(w).hypot(f64::from(h));
-    let (cx_img, cy_img) = (f64::from(w) / 2.0, f64::from(h) / 2.0);
-    let lighting = |u: f64, v: f64| {
-        let along = ((u - cx_img) * gx + (v - cy_img) * gy) / diag + 0.5;
-        let r2 = ((u - cx_img).powi(2) + (v - cy_img).powi(2)) / (diag * diag / 4.0);
-        (1.0 - effects.lighting * along) * (1.0 - 0.3 * effects.lighting * r2)
-    };
+    let lighting = Lighting::draw(&mut rng, [w, h], effects.lighting);
+    let background = |u: f64, v: f64| Shape::level_at(&shapes, u, v).unwrap_or(background_level);
+    let plane = draw_plane(
+        &scene.camera,
+        [w, h],
+        &codes,
+        effects,
+        &background,
+        &lighting,
+    );
+    let image = finish(plane, [w, h], effects, &mut rng)?;
+    let encoded = encode(&image, effects.encoding)?;
+    Ok(RenderedScene {
+        image,
+        encoded,
+        truth,
+    })
+}
+
+/// Refuses an image side of zero or above [`MAX_SIDE_PX`].
+pub(super) fn check_size(width_px: u32, height_px: u32) -> Result<(), RenderError> {
+    if width_px == 0 || height_px == 0 || width_px > MAX_SIDE_PX || height_px > MAX_SIDE_PX {
+        return Err(RenderError::ImageSize {
+            width_px,
+            height_px,
+        });
+    }
+    Ok(())
+}
+
+/// Uneven lighting, fixed to the image: a linear gradient in a random direction plus
+/// vignetting, dropping the illumination by up to `amount` (0-0.9).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Lighting {
+    amount: f64,
+    gx: f64,
+    gy: f64,
+    diag: f64,
+    cx: f64,
+    cy: f64,
+}
+
+impl Lighting {
+    /// The gradient's direction drawn from `rng` for a `width_px` × `height_px` image.
+    pub(super) fn draw(rng: &mut StdRng, [width_px, height_px]: [u32; 2], amount: f64) -> Self {
+        let angle = rng.gen_range(0.0..std::f64::consts::TAU);
+        let (wf, hf) = (f64::from(width_px), f64::from(height_px));
+        Self {
+            amount,
+            gx: angle.cos(),
+            gy: angle.sin(),
+            diag: wf.hypot(hf),
+            cx: wf / 2.0,
+            cy: hf / 2.0,
+        }
+    }
+
+    /// The relative illumination at pixel (u, v), 0.1-1.
+    fn at(&self, u: f64, v: f64) -> f64 {
+        let (du, dv) = (u - self.cx, v - self.cy);
+        let along = (du * self.gx + dv * self.gy) / self.diag + 0.5;
+        let r2 = (du * du + dv * dv) / (self.diag * self.diag / 4.0);
+        (1.0 - self.amount * along) * (1.0 - 0.3 * self.amount * r2)
+    }
+}
+
+/// The reflectance × lighting plane of a `width_px` × `height_px` image (row-major): each
+/// pixel near a code the mean of `supersample`² sub-pixel rays (the topmost code a ray meets,
+/// else `background` at the sub-pixel point), every other pixel `background` at its centre.
+pub(super) fn draw_plane(
+    camera: &Camera,
+    [width_px, height_px]: [u32; 2],
+    codes: &[Prepared],
+    effects: &Effects,
+    background: &dyn Fn(f64, f64) -> f64,
+    lighting: &Lighting,
+) -> Vec<f64> {
+    let (wu, hu) = (width_px as usize, height_px as usize);
     // The topmost code a sub-pixel ray meets, among those near its pixel.
     let reflectance = |near: &[&Prepared], u: f64, v: f64| -> Option<f64> {
-        let ray = scene.camera.normalize(&PixelPoint::new(u, v)).ok()?;
+        let ray = camera.normalize(&PixelPoint::new(u, v)).ok()?;
         let dir = Vector3::new(ray.x(), ray.y(), 1.0);
         near.iter().rev().find_map(|c| c.reflectance(&dir, effects))
     };
@@ -301,15 +413,31 @@ pub fn render_scene(scene: &MultiScene, effects: &Effects) -> Result<RenderedSce
                 }
                 sum / (sf * sf)
             };
-            plane[y * wu + x] = value * lighting(u, v);
+            plane[y * wu + x] = value * lighting.at(u, v);
         }
     }
+    plane
+}
+
+/// A plane to pixels: the lens blur ([`gaussian_blur_plane`], σ = `blur_px`), sensor noise
+/// drawn from `rng` (σ = `noise` grey levels), rounding and clamping to 0-255.
+///
+/// # Errors
+/// [`RenderError::ImageSize`] when the plane is not `width_px` × `height_px`, and
+/// [`RenderError::Effect`] for a noise σ the normal distribution refuses.
+pub(super) fn finish(
+    mut plane: Vec<f64>,
+    [width_px, height_px]: [u32; 2],
+    effects: &Effects,
+    rng: &mut StdRng,
+) -> Result<GrayImage, RenderError> {
+    let (wu, hu) = (width_px as usize, height_px as usize);
+    let size_error = RenderError::ImageSize {
+        width_px,
+        height_px,
+    };
     if effects.blur_px > 0.0 {
-        plane =
-            gaussian_blur_plane(&plane, wu, hu, effects.blur_px).ok_or(RenderError::ImageSize {
-                width_px: w,
-                height_px: h,
-            })?;
+        plane = gaussian_blur_plane(&plane, wu, hu, effects.blur_px).ok_or(size_error.clone())?;
     }
     let noise = Normal::new(0.0, effects.noise.max(1e-12)).map_err(|_| RenderError::Effect {
         name: "noise",
@@ -319,21 +447,12 @@ pub fn render_scene(scene: &MultiScene, effects: &Effects) -> Result<RenderedSce
         .iter()
         .map(|&value| {
             let noisy = if effects.noise > 0.0 {
-                value + noise.sample(&mut rng)
+                value + noise.sample(rng)
             } else {
                 value
             };
             noisy.round().clamp(0.0, 255.0) as u8
         })
         .collect();
-    let image = GrayImage::new(wu, hu, pixels).ok_or(RenderError::ImageSize {
-        width_px: w,
-        height_px: h,
-    })?;
-    let encoded = encode(&image, effects.encoding)?;
-    Ok(RenderedScene {
-        image,
-        encoded,
-        truth,
-    })
+    GrayImage::new(wu, hu, pixels).ok_or(size_error)
 }
