@@ -18,7 +18,8 @@ use common::{FRAMES, frame};
 use criterion::{Criterion, criterion_group, criterion_main};
 use qrpose::annotate::raster::{Style, draw_overlay};
 use qrpose::annotate::{OutputFormat, annotated_image, codec, overlay};
-use qrpose::api::image::{ImageLimits, ImageQuery, ImageResponse, estimate_image_from_query};
+use qrpose::api::image::{ImageLimits, ImageQuery, ImageResponse, respond};
+use qrpose::detect::cancel::CancelFlag;
 use qrpose::geometry::camera::Camera;
 use std::hint::black_box;
 use std::time::Instant;
@@ -37,15 +38,15 @@ fn query() -> ImageQuery {
 /// The camera of [`query`], as the routes validate it.
 fn camera() -> Option<Camera> {
     query()
-        .into_request()
-        .and_then(|r| r.validate(ImageLimits::default().max_detect_ms))
+        .setup(&ImageLimits::default(), None)
         .ok()
-        .map(|r| r.setup.camera)
+        .map(|setup| setup.pose.camera)
 }
 
 /// What the plain route's job does: estimate and serialise.
 fn plain(jpeg: &[u8]) -> Option<(ImageResponse, Vec<u8>)> {
-    let response = estimate_image_from_query(jpeg, query(), &ImageLimits::default()).ok()?;
+    let setup = query().setup(&ImageLimits::default(), None).ok()?;
+    let response = respond(&setup, jpeg, CancelFlag::new()).ok()?;
     let json = serde_json::to_vec(&response).ok()?;
     Some((response, json))
 }

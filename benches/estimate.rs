@@ -72,7 +72,7 @@ fn full_request(c: &mut Criterion) {
         |b| {
             b.iter(|| {
                 i = (i + 1) % requests.len();
-                black_box(estimate_corners(black_box(&requests[i])))
+                black_box(estimate_corners(black_box(&requests[i]), None))
             })
         },
     );

@@ -10,6 +10,7 @@
 //! | [`detect`] | image bytes to QR codes: decoding, detector backends, sub-pixel corners |
 //! | [`render`] | synthetic photos of a QR code at a known pose, with ground truth |
 //! | [`annotate`] | annotated images: the overlay of an image response drawn on the photo |
+//! | [`app`] | the application layer: one validated `Setup`, one function per operation |
 //! | [`api`] | wire types shared by the HTTP service and the CLI, and their validation |
 //! | [`config`] | the settings of `qrpose serve`: flags, environment fallbacks, validation |
 //! | [`telemetry`] | logging setup: text or JSON lines on standard error |
@@ -19,6 +20,7 @@
 
 pub mod annotate;
 pub mod api;
+pub mod app;
 pub mod config;
 pub mod http;
 pub mod telemetry;

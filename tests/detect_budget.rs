@@ -87,10 +87,7 @@ const ROOMY: Duration = Duration::from_secs(60);
 #[test]
 fn balanced_reads_every_code_of_a_frame_with_several() {
     let (image, _) = three_codes();
-    let budget = Budget {
-        effort: Effort::Balanced,
-        max_detect: Some(ROOMY),
-    };
+    let budget = Budget::new(Effort::Balanced, Some(ROOMY));
     let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
     assert_eq!(
         texts(&detection),
@@ -104,10 +101,7 @@ fn balanced_reads_every_code_of_a_frame_with_several() {
 fn a_frame_without_a_code_costs_only_the_whole_frame_reads() {
     let image = no_code();
     for effort in [Effort::Fast, Effort::Balanced] {
-        let budget = Budget {
-            effort,
-            max_detect: Some(ROOMY),
-        };
+        let budget = Budget::new(effort, Some(ROOMY));
         let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
         assert!(detection.codes.is_empty());
         let names: Vec<&str> = detection
@@ -190,10 +184,7 @@ fn balanced_reads_small_blurred_codes_that_the_whole_frame_reads_miss() {
     let mut read_only_when_sharpened = 0;
     for variant in 0..4 {
         let image = small_blurred_code(variant);
-        let budget = |effort| Budget {
-            effort,
-            max_detect: Some(ROOMY),
-        };
+        let budget = |effort| Budget::new(effort, Some(ROOMY));
         let fast =
             detect_within(&image, DetectorChoice::Auto, &budget(Effort::Fast)).expect("auto");
         let balanced =
@@ -255,10 +246,7 @@ fn balanced_reads_the_small_blurred_codes_next_to_the_codes_it_read() {
             rendered,
             image,
         } = multicode::frame(seed, blur_px, noise, quality);
-        let budget = Budget {
-            effort: Effort::Balanced,
-            max_detect: Some(ROOMY),
-        };
+        let budget = Budget::new(Effort::Balanced, Some(ROOMY));
         let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
         let read = texts(&detection);
         for (code, truth) in scene.codes.iter().zip(&rendered.truth) {
@@ -285,10 +273,7 @@ fn balanced_reads_the_small_blurred_codes_next_to_the_codes_it_read() {
 #[test]
 fn a_spent_deadline_stops_after_the_first_pass_and_says_so() {
     let (image, _) = three_codes();
-    let budget = Budget {
-        effort: Effort::Thorough,
-        max_detect: Some(Duration::ZERO),
-    };
+    let budget = Budget::new(Effort::Thorough, Some(Duration::ZERO));
     let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
     assert_eq!(detection.log.passes.len(), 1, "{:?}", detection.log.passes);
     assert!(detection.log.budget_exhausted);
@@ -309,8 +294,13 @@ fn request(extra: serde_json::Value) -> ImageRequest {
 fn the_image_request_takes_effort_and_a_deadline_and_warns_when_it_is_spent() {
     let (_, jpeg) = three_codes();
     let limits = ImageLimits::default();
-    let full =
-        estimate_image(&jpeg, &request(json!({"effort": "balanced"})), &limits).expect("estimates");
+    let full = estimate_image(
+        &jpeg,
+        &request(json!({"effort": "balanced"})),
+        &limits,
+        None,
+    )
+    .expect("estimates");
     assert_eq!(full.markers.len(), 3);
     assert!(full.warnings.is_empty());
     assert!(!full.timing_ms.detect_passes.is_empty());
@@ -318,13 +308,19 @@ fn the_image_request_takes_effort_and_a_deadline_and_warns_when_it_is_spent() {
         &jpeg,
         &request(json!({"effort": "thorough", "max_detect_ms": 1e-6})),
         &limits,
+        None,
     )
     .expect("estimates");
     assert_eq!(rushed.warnings, [ImageWarningDto::DetectionBudgetExhausted]);
     assert_eq!(rushed.timing_ms.detect_passes.len(), 1);
     for bad in [0.0, -5.0] {
-        let problem = estimate_image(&jpeg, &request(json!({"max_detect_ms": bad})), &limits)
-            .expect_err("refused");
+        let problem = estimate_image(
+            &jpeg,
+            &request(json!({"max_detect_ms": bad})),
+            &limits,
+            None,
+        )
+        .expect_err("refused");
         assert_eq!(problem.code, ErrorCode::InvalidDetectionBudget);
         assert_eq!(problem.field.as_deref(), Some("/max_detect_ms"));
     }
@@ -334,13 +330,14 @@ fn the_image_request_takes_effort_and_a_deadline_and_warns_when_it_is_spent() {
 fn the_servers_cap_lowers_a_larger_deadline() {
     let (_, jpeg) = three_codes();
     let capped = ImageLimits {
-        max_detect_ms: 1e-6,
+        max_detect: std::time::Duration::from_nanos(1),
         ..ImageLimits::default()
     };
     let response = estimate_image(
         &jpeg,
         &request(json!({"effort": "thorough", "max_detect_ms": 60000.0})),
         &capped,
+        None,
     )
     .expect("estimates");
     assert_eq!(
@@ -368,10 +365,7 @@ fn a_lone_small_code_is_read_without_the_sharpened_read() {
         ..Effects::default()
     };
     let image = render(&scene, &effects).expect("renders").image;
-    let budget = Budget {
-        effort: Effort::Balanced,
-        max_detect: Some(ROOMY),
-    };
+    let budget = Budget::new(Effort::Balanced, Some(ROOMY));
     let detection = detect_within(&image, DetectorChoice::Auto, &budget).expect("auto");
     assert_eq!(texts(&detection), ["SKU-0042-warehouse-bin-17"]);
     let passes: Vec<&str> = detection

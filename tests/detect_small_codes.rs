@@ -16,10 +16,7 @@ mod multicode;
 const ROOMY: Duration = Duration::from_secs(60);
 
 fn detect(image: &GrayImage, effort: Effort) -> Detection {
-    let budget = Budget {
-        effort,
-        max_detect: Some(ROOMY),
-    };
+    let budget = Budget::new(effort, Some(ROOMY));
     detect_within(image, DetectorChoice::Auto, &budget).expect("auto")
 }
 

@@ -85,7 +85,7 @@ fn request() -> impl Strategy<Value = Value> {
 /// Runs one request as the service does (JSON bytes in) and checks the property.
 fn check(body: &Value) -> Result<(), TestCaseError> {
     let bytes = serde_json::to_vec(body).expect("finite numbers serialise");
-    let answer = parse_json::<CornersRequest>(&bytes).and_then(|r| estimate_corners(&r));
+    let answer = parse_json::<CornersRequest>(&bytes).and_then(|r| estimate_corners(&r, None));
     match answer {
         Ok(pose) => {
             let json = serde_json::to_value(&pose).expect("a pose serialises");
@@ -142,7 +142,7 @@ fn the_issues_examples_are_refused_for_what_they_are() {
         check(&body).expect("a valid pose or a 4xx");
         let bytes = serde_json::to_vec(&body).expect("serialises");
         let request = parse_json::<CornersRequest>(&bytes).expect("parses");
-        match estimate_corners(&request) {
+        match estimate_corners(&request, None) {
             Ok(pose) => panic!("{body}: a pose {pose:?}"),
             Err(problem) => {
                 assert_eq!(
@@ -166,7 +166,7 @@ fn the_schema_check_sees_a_null_in_a_number_field() {
     });
     let bytes = serde_json::to_vec(&body).expect("serialises");
     let request = parse_json::<CornersRequest>(&bytes).expect("parses");
-    let mut pose = estimate_corners(&request).expect("the README's example");
+    let mut pose = estimate_corners(&request, None).expect("the README's example");
     let found = schema_errors(&serde_json::to_value(&pose).expect("json"));
     assert!(found.is_empty(), "{found:?}");
     pose.distance_mm = f64::NAN;

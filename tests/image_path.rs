@@ -229,8 +229,13 @@ fn estimate_image_returns_corners_and_pose_of_a_rendered_jpeg() {
     let s = scene("SKU-1", [-20.0, 15.0, 350.0], [-20.0, 15.0, 140.0]);
     let r = photo(&s, 4);
     for points in ["corners", "finders"] {
-        let response = estimate_image(&r.encoded, &request(Some(points)), &ImageLimits::default())
-            .expect("estimates");
+        let response = estimate_image(
+            &r.encoded,
+            &request(Some(points)),
+            &ImageLimits::default(),
+            None,
+        )
+        .expect("estimates");
         assert_eq!(
             (response.image.width_px, response.image.height_px),
             (640, 480)
@@ -272,20 +277,21 @@ fn estimate_image_returns_corners_and_pose_of_a_rendered_jpeg() {
 fn corners_is_the_default_and_finders_is_refused_for_paper() {
     let s = scene("default points", [0.0, 0.0, 350.0], [10.0, 0.0, 0.0]);
     let r = photo(&s, 5);
-    let response =
-        estimate_image(&r.encoded, &request(None), &ImageLimits::default()).expect("estimates");
+    let response = estimate_image(&r.encoded, &request(None), &ImageLimits::default(), None)
+        .expect("estimates");
     assert_eq!(response.markers[0].points_used, PointsDto::Corners);
     let err = max_corner_error_px(&response.markers[0].corners_px, &r.truth.corners_px);
     assert!(err < CORNER_TOL_PX, "corner error {err} px");
     let mut paper = request(Some("finders"));
     paper.solver.method = qrpose::api::request::MethodDto::Paper;
-    let p = estimate_image(&r.encoded, &paper, &ImageLimits::default()).expect_err("refused");
+    let p = estimate_image(&r.encoded, &paper, &ImageLimits::default(), None).expect_err("refused");
     assert_eq!(
         (p.code, p.status, p.field.as_deref()),
         (ErrorCode::PointsNeedReprojection, 422, Some("/points"))
     );
     paper.points = None;
-    let ok = estimate_image(&r.encoded, &paper, &ImageLimits::default()).expect("paper on corners");
+    let ok = estimate_image(&r.encoded, &paper, &ImageLimits::default(), None)
+        .expect("paper on corners");
     assert_eq!(ok.markers[0].points_used, PointsDto::Corners);
     assert_eq!(
         ok.markers[0]
@@ -303,8 +309,8 @@ fn an_image_without_a_code_is_an_empty_success_and_bad_images_are_problems() {
         Encoding::Jpeg(90),
     )
     .expect("encodes");
-    let response =
-        estimate_image(&blank, &request(None), &ImageLimits::default()).expect("no code is fine");
+    let response = estimate_image(&blank, &request(None), &ImageLimits::default(), None)
+        .expect("no code is fine");
     assert!(response.markers.is_empty());
     let cases = [
         (
@@ -343,7 +349,7 @@ fn an_image_without_a_code_is_an_empty_success_and_bad_images_are_problems() {
             decode: limits,
             ..ImageLimits::default()
         };
-        let p = estimate_image(&bytes, &request(None), &limits).expect_err("refused");
+        let p = estimate_image(&bytes, &request(None), &limits, None).expect_err("refused");
         assert_eq!((p.code, p.status), (code, status), "{}", p.detail);
     }
 }
@@ -352,7 +358,7 @@ fn an_image_without_a_code_is_an_empty_success_and_bad_images_are_problems() {
 fn asking_for_an_unbuilt_detector_is_a_clear_422() {
     let mut req = request(None);
     req.detector = qrpose::api::image::DetectorDto::ZxingCpp;
-    let result = estimate_image(b"never decoded", &req, &ImageLimits::default());
+    let result = estimate_image(b"never decoded", &req, &ImageLimits::default(), None);
     if Backend::ZxingCpp.is_built() {
         assert_eq!(
             result.map(|_| ()).map_err(|p| p.code),
@@ -575,10 +581,7 @@ fn a_diverging_refinement_keeps_the_pass_before_and_the_photo_still_reads() {
     let image = decode_gray(&bytes, &DecodeLimits::default()).expect("decodes");
     // Only rqrr, the last pass on the symbol's region, finds it; the deadline is wall-clock
     // and this test build is barely optimised, so it gets room to reach that pass.
-    let budget = Budget {
-        effort: Effort::Balanced,
-        max_detect: Some(std::time::Duration::from_secs(60)),
-    };
+    let budget = Budget::new(Effort::Balanced, Some(std::time::Duration::from_secs(60)));
     let codes = detect_within(&image, DetectorChoice::Auto, &budget)
         .expect("built")
         .codes;

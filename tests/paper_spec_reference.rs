@@ -95,7 +95,7 @@ proptest! {
             solver: SolverDto { method: MethodDto::Paper, initial_z_mm: Some(z0), gain: k, tolerance_mm: e_d, max_iterations: n_max, ..SolverDto::default() },
             prior: None,
         };
-        let ours = estimate_corners(&request).map_err(|p| TestCaseError::fail(p.detail))?;
+        let ours = estimate_corners(&request, None).map_err(|p| TestCaseError::fail(p.detail))?;
         // Same normalised inputs as the service sees them (x' / f).
         let xn_seen: [[f64; 2]; 4] = std::array::from_fn(|i| [xn[i][0] * f / f, xn[i][1] * f / f]);
         let want = reference(xn_seen, l, z0, k, e_d, u32::try_from(n_max).unwrap_or(u32::MAX));

@@ -194,7 +194,7 @@ fn solve(s: &Scenario, method: MethodDto) -> Result<(PoseResponse, MarkerToCamer
         },
         prior: None,
     };
-    let response = estimate_corners(&request)
+    let response = estimate_corners(&request, None)
         .map_err(|p| TestCaseError::fail(format!("{}: {}", p.title, p.detail)))?;
     Ok((response, pose))
 }

@@ -1,9 +1,9 @@
 //! One photo, codes of two sizes (issue 14): with the sizes from a site file every code's
 //! distance is right within 0.5 %; with one size for all, as before sites, the dock marker's
-//! is not.
+//! is not. Each code is solved once, at its own size (issue 23).
 
 use nalgebra::Vector3;
-use qrpose::api::image::{ImageLimits, ImageRequest, ImageResponse, estimate_image_in};
+use qrpose::api::image::{ImageLimits, ImageRequest, ImageResponse, estimate_image};
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
 use qrpose::render::{CodePlacement, EcLevel, Effects, Encoding, MultiScene, render_scene};
 use qrpose_site::Site;
@@ -99,11 +99,11 @@ fn sizes_from_the_site_put_every_code_at_its_distance() {
     let site = Site::parse(SITE, Path::new("site.yaml")).expect("a valid site");
     let request: ImageRequest =
         serde_json::from_value(json!({"camera": {"id": "dock-cam"}})).expect("a request");
-    let response = estimate_image_in(
+    let response = estimate_image(
         &photo(&scene),
         &request,
         &ImageLimits::default(),
-        Some(&site),
+        Some(std::sync::Arc::new(site)),
     )
     .expect("estimates");
     let found = distances(&response);
@@ -137,8 +137,8 @@ fn one_size_for_every_code_gets_the_dock_marker_wrong() {
         "marker": {"size_mm": 50}
     }))
     .expect("a request");
-    let response = estimate_image_in(&photo(&scene), &request, &ImageLimits::default(), None)
-        .expect("estimates");
+    let response =
+        estimate_image(&photo(&scene), &request, &ImageLimits::default(), None).expect("estimates");
     let found = distances(&response);
     let dock = found
         .iter()
@@ -157,4 +157,95 @@ fn one_size_for_every_code_gets_the_dock_marker_wrong() {
         let error = distance_mm / truth_mm(&scene, payload) - 1.0;
         assert!(error.abs() < MAX_DISTANCE_ERROR, "{payload}: {error}");
     }
+}
+
+/// The site without a default size: the unlisted `SKU-0042` has no size.
+const SITE_WITHOUT_DEFAULT: &str = "\
+cameras:
+  dock-cam:
+    intrinsics: {fx_px: 1000, fy_px: 1000, cx_px: 639.5, cy_px: 359.5}
+markers:
+  sizes:
+    - {payload: \"DOCK-7\", size_mm: 120}
+    - {prefix: \"TOTE-\", size_mm: 50}
+";
+
+/// Poses solved on this thread while `f` runs (the core counts every solve,
+/// `qrpose_core::estimate::count`).
+fn solves_during<T>(f: impl FnOnce() -> T) -> (T, u64) {
+    let before = qrpose::estimate::count::solves_on_this_thread();
+    let out = f();
+    (
+        out,
+        qrpose::estimate::count::solves_on_this_thread() - before,
+    )
+}
+
+/// Issue 23: a photo request sized by the site solved every code twice (once at a 100 mm
+/// stand-in size, once at its own). Each code is now solved once, at its own size, and a
+/// code the site cannot size not at all.
+#[test]
+fn each_code_of_a_photo_is_solved_once_at_its_own_size() {
+    let jpeg = photo(&scene());
+    let cases = [
+        (
+            "sizes from the site",
+            SITE,
+            json!({"camera": {"id": "dock-cam"}}),
+            3,
+            3,
+        ),
+        (
+            "one size from the request",
+            SITE,
+            json!({"camera": {"id": "dock-cam"}, "marker": {"size_mm": 50}}),
+            3,
+            3,
+        ),
+        (
+            "a code the site cannot size",
+            SITE_WITHOUT_DEFAULT,
+            json!({"camera": {"id": "dock-cam"}}),
+            3,
+            2,
+        ),
+        (
+            "finder points",
+            SITE,
+            json!({"camera": {"id": "dock-cam"}, "points": "finders"}),
+            3,
+            3,
+        ),
+    ];
+    for (name, site, body, markers, solves) in cases {
+        let site = std::sync::Arc::new(Site::parse(site, Path::new("site.yaml")).expect("a site"));
+        let request: ImageRequest = serde_json::from_value(body).expect("a request");
+        let (response, counted) = solves_during(|| {
+            estimate_image(&jpeg, &request, &ImageLimits::default(), Some(site)).expect("estimates")
+        });
+        assert_eq!(response.markers.len(), markers, "{name}");
+        let posed = response.markers.iter().filter(|m| m.pose.is_some()).count();
+        assert_eq!(posed, solves, "{name}: codes with a pose");
+        assert_eq!(
+            counted,
+            u64::try_from(solves).expect("small"),
+            "{name}: solves"
+        );
+    }
+}
+
+/// A corners request is one solve, with or without a site.
+#[test]
+fn a_corners_request_is_solved_once() {
+    let site = std::sync::Arc::new(Site::parse(SITE, Path::new("site.yaml")).expect("a site"));
+    let request: qrpose::api::request::CornersRequest = serde_json::from_value(json!({
+        "corners_px": [[589.2, 309.8], [689.9, 311.4], [688.1, 411.6], [588.0, 409.5]],
+        "camera": {"id": "dock-cam"},
+        "payload": "TOTE-0009"
+    }))
+    .expect("a request");
+    let (response, counted) =
+        solves_during(|| qrpose::api::estimate_corners(&request, Some(site)).expect("a pose"));
+    assert_eq!(response.marker_size_mm, 50.0);
+    assert_eq!(counted, 1);
 }

@@ -40,10 +40,7 @@ fuzz_target!(
             1 => Effort::Balanced,
             _ => Effort::Thorough,
         };
-        let budget = Budget {
-            effort,
-            max_detect: Some(Duration::from_secs(5)),
-        };
+        let budget = Budget::new(effort, Some(Duration::from_secs(5)));
         for choice in [
             DetectorChoice::Auto,
             DetectorChoice::Only(Backend::Rqrr),

@@ -21,14 +21,14 @@ static TINY_PNG: LazyLock<Vec<u8>> = LazyLock::new(|| {
 });
 
 fuzz_target!(|bytes: &[u8]| {
-    match parse_json::<CornersRequest>(bytes).and_then(|r| estimate_corners(&r)) {
+    match parse_json::<CornersRequest>(bytes).and_then(|r| estimate_corners(&r, None)) {
         Ok(response) => {
             serde_json::to_vec(&response).expect("a pose serialises");
         }
         Err(problem) => assert!((400..500).contains(&problem.status), "{problem:?}"),
     }
     match parse_json::<ImageRequest>(bytes)
-        .and_then(|r| estimate_image(&TINY_PNG, &r, &ImageLimits::default()))
+        .and_then(|r| estimate_image(&TINY_PNG, &r, &ImageLimits::default(), None))
     {
         Ok(response) => {
             serde_json::to_vec(&response).expect("an image answer serialises");

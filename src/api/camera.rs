@@ -142,12 +142,13 @@ pub struct CameraDto {
     /// The id of a camera of the loaded site (`qrpose serve --site`), instead of every
     /// other field: its calibration, distortion and mount come from the site
     /// (`docs/site.md`).
+    #[schema(min_length = 1)]
     pub id: Option<String>,
     /// Horizontal focal length, px.
-    #[schema(example = 1000.0)]
+    #[schema(example = 1000.0, exclusive_minimum = 0)]
     pub fx_px: Option<f64>,
     /// Vertical focal length, px.
-    #[schema(example = 1000.0)]
+    #[schema(example = 1000.0, exclusive_minimum = 0)]
     pub fy_px: Option<f64>,
     /// Principal point, horizontal, px (pixel centres are integers: the image centre of a
     /// 1280-px-wide image is 639.5).
@@ -157,8 +158,10 @@ pub struct CameraDto {
     #[schema(example = 359.5)]
     pub cy_px: Option<f64>,
     /// Lens focal length, mm (sensor or paper form).
+    #[schema(exclusive_minimum = 0)]
     pub focal_length_mm: Option<f64>,
     /// Pixel pitch, µm (sensor form).
+    #[schema(exclusive_minimum = 0)]
     pub pixel_size_um: Option<f64>,
     /// Lens distortion of the corner pixels; none when omitted.
     pub distortion: Option<DistortionDto>,

@@ -110,7 +110,7 @@ pub fn resolve_marker(
     let lookup = site
         .sizes()
         .lookup(payload)
-        .ok_or_else(|| unknown_marker_size(site, payload).with_field(payload_pointer))?;
+        .ok_or_else(|| unknown_marker_size(Some(site), payload).with_field(payload_pointer))?;
     let marker = Marker::try_new(lookup.size_mm).map_err(|e| {
         Problem::new(ErrorCode::InvalidMarkerSize, e.to_string()).with_field(MARKER_POINTER)
     })?;
@@ -127,20 +127,22 @@ pub fn missing_marker() -> Problem {
     .with_field(MARKER_POINTER)
 }
 
-/// The problem of a code the site has no size for.
-pub fn unknown_marker_size(site: &Site, payload: Option<&str>) -> Problem {
+/// The problem of a code the site has no size for (or, without a site, a code whose
+/// request gave no size).
+pub fn unknown_marker_size(site: Option<&Site>, payload: Option<&str>) -> Problem {
     let which = match payload {
         Some(p) => format!("payload {p:?}"),
         None => "an undecoded code".to_owned(),
     };
-    Problem::new(
-        ErrorCode::UnknownMarkerSize,
-        format!(
+    let detail = match site {
+        Some(site) => format!(
             "no marker size for {which}: the request gives none and the site {} has no rule \
              for it and no default_size_mm",
             site.file().display()
         ),
-    )
+        None => format!("no marker size for {which}: the request gives none and no site is loaded"),
+    };
+    Problem::new(ErrorCode::UnknownMarkerSize, detail)
 }
 
 #[cfg(test)]

@@ -1,85 +1,70 @@
-//! `POST /v1/pose/corners` and `qrpose estimate REQUEST.json` with a site: the camera by id,
-//! the marker size by payload, the prior, and the pose in the robot's and the warehouse's
-//! frame (`docs/site.md`).
+//! `POST /v1/pose/corners` and `qrpose estimate REQUEST.json`: the request validated into a
+//! [`crate::app::Setup`], [`crate::app::estimate_corners`], and its answer as a
+//! [`PoseResponse`] (with a site: the camera by id, the marker size by payload, the prior,
+//! and the pose in the robot's and the warehouse's frame, `docs/site.md`).
 
-use super::check_arithmetic_range;
-use super::frames::{FramePoseDto, SiteView};
+use super::frames::FramePoseDto;
 use super::problem::Problem;
-use super::refusal::problem_from_estimate_error;
-use super::request::{CornersRequest, ValidCornersRequest};
+use super::refusal::problem_from_corners_error;
+use super::request::{CornersRequest, ValidCorners};
 use super::response::PoseResponse;
-use crate::estimate::{PoseEstimate, estimate_pose};
+use crate::app::{self, CornersAnswer};
 use qrpose_site::Site;
-use qrpose_site::prior::{Observation, apply_prior};
-use std::time::Instant;
+use std::sync::Arc;
 
-/// Validates a corners request against `site` (none: intrinsics and size in the request)
-/// and estimates the pose.
+/// Validates a corners request against `site` (none: intrinsics and size in the request),
+/// estimates the pose and maps the answer.
 ///
 /// # Errors
-/// As [`super::estimate_corners`], and 422 `unknown_camera`, `unknown_marker_size` or
-/// `invalid_prior` for what the site cannot resolve.
-pub fn estimate_corners_in(
+/// A [`Problem`] (4xx) for anything wrong with the request, including 422
+/// `numerically_degenerate` when a number of the result is not finite (inputs at magnitudes
+/// such as 1e150 px), and `unknown_camera`, `unknown_marker_size` or `invalid_prior` for
+/// what the site cannot resolve. Non-convergence is not an error: the response says
+/// `converged: false`.
+pub fn estimate_corners(
     request: &CornersRequest,
-    site: Option<&Site>,
+    site: Option<Arc<Site>>,
 ) -> Result<PoseResponse, Problem> {
-    let started = Instant::now();
-    let (valid, site_camera) = request.validate_in(site)?;
-    check_arithmetic_range(&valid)?;
-    let s = &valid.setup;
-    let estimate = estimate_pose(&valid.quad, &s.camera, &s.marker, &s.solver)
-        .map_err(|e| problem_from_estimate_error(e, valid.corners_pointer))?;
-    let view = SiteView {
-        site,
-        camera: site_camera,
-    };
-    let payload = request.payload.as_deref();
-    let (estimate, by_prior) = with_prior(estimate, &valid, &view, payload);
-    let elapsed_us = started.elapsed().as_secs_f64() * 1e6;
-    let response = PoseResponse::try_new(
-        &estimate,
-        &s.camera,
-        &s.marker,
-        elapsed_us,
-        valid.corners_pointer,
-    )?;
-    let (in_robot, in_world) = view.frames(&estimate, payload);
-    response.with_site(
-        valid.size_source.into(),
-        (
-            in_robot.as_ref().map(FramePoseDto::from),
-            in_world.as_ref().map(FramePoseDto::from),
-        ),
-        by_prior,
-        valid.corners_pointer,
+    let valid = request.validate(site)?;
+    let answer = app::estimate_corners(
+        &valid.setup,
+        &valid.quad,
+        valid.payload.as_deref(),
+        valid.started,
     )
+    .map_err(|e| {
+        problem_from_corners_error(
+            e,
+            valid.corners_pointer,
+            valid.setup.site.as_deref(),
+            valid.payload.as_deref(),
+        )
+    })?;
+    pose_response(&answer, &valid)
 }
 
-/// The estimate after the request's prior, and whether the prior decided.
-fn with_prior(
-    estimate: PoseEstimate,
-    valid: &ValidCornersRequest,
-    view: &SiteView<'_>,
-    payload: Option<&str>,
-) -> (PoseEstimate, bool) {
-    let Some(prior) = valid
-        .prior
-        .as_ref()
-        .and_then(|p| view.rotation_prior(p, payload))
-    else {
-        return (estimate, false);
-    };
-    let s = &valid.setup;
-    let model = s.marker.object_points();
-    let obs = Observation {
-        model: &model,
-        image: valid.quad.paper_order(),
-        camera: &s.camera,
-        marker: &s.marker,
-        corner_sigma_px: s.solver.as_reprojection().corner_sigma_px,
-    };
-    match apply_prior(&estimate, &obs, &prior) {
-        Some((with_prior, _)) => (with_prior, true),
-        None => (estimate, false),
-    }
+/// The wire form of a corners answer.
+///
+/// # Errors
+/// 422 `numerically_degenerate` (naming the corner list) when a number is not finite.
+pub fn pose_response(
+    answer: &CornersAnswer,
+    valid: &ValidCorners,
+) -> Result<PoseResponse, Problem> {
+    let response = PoseResponse::try_new(
+        &answer.estimate,
+        &valid.setup.camera,
+        &answer.marker,
+        answer.elapsed_us,
+        valid.corners_pointer,
+    )?;
+    response.with_site(
+        answer.size_source.into(),
+        (
+            answer.frames.in_robot.as_ref().map(FramePoseDto::from),
+            answer.frames.in_world.as_ref().map(FramePoseDto::from),
+        ),
+        answer.resolved_by_prior,
+        valid.corners_pointer,
+    )
 }

@@ -1,18 +1,17 @@
-//! What a site adds to a pose (`docs/site.md`): the marker size and its source, the code's
-//! pose in the robot frame, the robot's pose in the warehouse from a mapped code, the fused
-//! `localization` of a photo, and the `prior` that resolves the planar ambiguity. The math
-//! is the qrpose-site crate's; this module is its wire form.
+//! What a site adds to a pose (`docs/site.md`), on the wire: the marker size and its
+//! source, the code's pose in the robot frame, the robot's pose in the warehouse from a
+//! mapped code, the fused `localization` of a photo, and the `prior` that resolves the
+//! planar ambiguity (validated into [`crate::app::Prior`]). The math is the application
+//! layer's and the qrpose-site crate's.
 
 use super::problem::{ErrorCode, Problem};
 use super::response::{COVARIANCE_ORDER, CovarianceDto, RotationDto, Vec3Mm};
-use crate::estimate::PoseEstimate;
+use crate::app::{Localization, Prior};
 use nalgebra::{Quaternion, Rotation3, UnitQuaternion};
-use qrpose_site::localize::{CHI2_GATE_6DOF, fuse, residual_rotation_deg};
-use qrpose_site::prior::{RotationPrior, expected_marker_rotation};
-use qrpose_site::transform::{
-    PoseWithCovariance, marker_in_camera, pose_in_robot, robot_pose_in_world,
-};
-use qrpose_site::{Site, SiteCamera, SizeSource};
+use qrpose_site::SizeSource;
+use qrpose_site::localize::{CHI2_GATE_6DOF, residual_rotation_deg};
+use qrpose_site::prior::RotationPrior;
+use qrpose_site::transform::PoseWithCovariance;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
@@ -112,29 +111,20 @@ pub struct LocalizationDto {
 pub struct PriorDto {
     /// The expected rotation of the code in the camera frame (R of p_cam = R·p_marker + t),
     /// as a quaternion (w, x, y, z); normalised.
+    #[schema(min_items = 4, max_items = 4)]
     pub marker_quaternion_wxyz: Option<[f64; 4]>,
     /// The robot's expected rotation in the warehouse frame (from odometry), (w, x, y, z):
     /// with the camera's mount and the map it gives each mapped code's expected rotation
     /// (needs a site, `camera.id` with a mount; unmapped codes are left alone).
+    #[schema(min_items = 4, max_items = 4)]
     pub robot_quaternion_wxyz: Option<[f64; 4]>,
     /// Standard deviation of the angle to the expected rotation, degrees, in (0, 180].
-    #[schema(example = 15.0)]
+    #[schema(example = 15.0, exclusive_minimum = 0, maximum = 180)]
     pub sigma_deg: f64,
 }
 
-/// A validated prior.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum ValidPrior {
-    /// The code's rotation in the camera frame.
-    Marker(RotationPrior),
-    /// The robot's rotation in the world, and σ (rad).
-    Robot {
-        /// R_world←robot.
-        rotation: Rotation3<f64>,
-        /// σ, rad.
-        sigma_rad: f64,
-    },
-}
+/// Largest `sigma_deg` of a prior: beyond half a turn a prior says nothing.
+pub const MAX_PRIOR_SIGMA_DEG: f64 = 180.0;
 
 fn prior_problem(detail: impl Into<String>, field: &str) -> Problem {
     Problem::new(ErrorCode::InvalidPrior, detail).with_field(format!("/prior/{field}"))
@@ -159,20 +149,26 @@ impl PriorDto {
     /// # Errors
     /// 422 `invalid_prior` for neither or both rotations, a zero or non-finite quaternion
     /// or `sigma_deg` outside (0, 180].
-    pub fn validate(&self) -> Result<ValidPrior, Problem> {
-        if !(self.sigma_deg.is_finite() && self.sigma_deg > 0.0 && self.sigma_deg <= 180.0) {
+    pub fn validate(&self) -> Result<Prior, Problem> {
+        if !(self.sigma_deg.is_finite()
+            && self.sigma_deg > 0.0
+            && self.sigma_deg <= MAX_PRIOR_SIGMA_DEG)
+        {
             return Err(prior_problem(
-                format!("sigma_deg must be in (0, 180], got {}", self.sigma_deg),
+                format!(
+                    "sigma_deg must be in (0, {MAX_PRIOR_SIGMA_DEG}], got {}",
+                    self.sigma_deg
+                ),
                 "sigma_deg",
             ));
         }
         let sigma_rad = self.sigma_deg.to_radians();
         match (self.marker_quaternion_wxyz, self.robot_quaternion_wxyz) {
-            (Some(q), None) => Ok(ValidPrior::Marker(RotationPrior {
+            (Some(q), None) => Ok(Prior::Marker(RotationPrior {
                 expected: rotation_of(q, "marker_quaternion_wxyz")?,
                 sigma_rad,
             })),
-            (None, Some(q)) => Ok(ValidPrior::Robot {
+            (None, Some(q)) => Ok(Prior::Robot {
                 rotation: rotation_of(q, "robot_quaternion_wxyz")?,
                 sigma_rad,
             }),
@@ -188,88 +184,28 @@ impl PriorDto {
     }
 }
 
-/// What the site knows about the camera and the code of one pose.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct SiteView<'a> {
-    /// The loaded site.
-    pub site: Option<&'a Site>,
-    /// The request's site camera (`camera.id`).
-    pub camera: Option<&'a SiteCamera>,
-}
-
-impl SiteView<'_> {
-    /// The rotation prior for the code with `payload`, if `prior` says anything about it.
-    pub fn rotation_prior(
-        &self,
-        prior: &ValidPrior,
-        payload: Option<&str>,
-    ) -> Option<RotationPrior> {
-        match *prior {
-            ValidPrior::Marker(p) => Some(p),
-            ValidPrior::Robot {
-                rotation,
-                sigma_rad,
-            } => {
-                let mount = self.camera?.mount?;
-                let mapped = self.site?.mapped(payload?)?;
-                Some(RotationPrior {
-                    expected: expected_marker_rotation(
-                        &rotation,
-                        &mount.rotation,
-                        &mapped.rotation,
-                    ),
-                    sigma_rad,
+impl From<&Localization> for LocalizationDto {
+    fn from(l: &Localization) -> Self {
+        Self {
+            robot_pose_in_world: FramePoseDto::from(&l.fusion.pose),
+            codes: l
+                .codes
+                .iter()
+                .zip(&l.fusion.codes)
+                .map(|((index, payload), c)| LocalizationCodeDto {
+                    marker_index: *index,
+                    payload: payload.clone(),
+                    residual_position_mm: Vec3Mm {
+                        x: c.residual[3],
+                        y: c.residual[4],
+                        z: c.residual[5],
+                    },
+                    residual_rotation_deg: residual_rotation_deg(&c.residual),
+                    chi2: c.chi2,
+                    outlier: c.outlier,
                 })
-            }
+                .collect(),
+            chi2_gate: CHI2_GATE_6DOF,
         }
     }
-
-    /// The code's pose in the robot frame (camera with a mount), and the robot's pose in
-    /// the world (also a mapped payload).
-    pub fn frames(
-        &self,
-        estimate: &PoseEstimate,
-        payload: Option<&str>,
-    ) -> (Option<PoseWithCovariance>, Option<PoseWithCovariance>) {
-        let Some(mount) = self.camera.and_then(|c| c.mount) else {
-            return (None, None);
-        };
-        let in_camera = marker_in_camera(estimate);
-        let in_robot = pose_in_robot(&mount, &in_camera);
-        let in_world = payload
-            .and_then(|p| self.site?.mapped(p))
-            .map(|map| robot_pose_in_world(map, &in_camera, &mount));
-        (Some(in_robot), in_world)
-    }
-}
-
-/// The fused localisation of `mapped` (marker index, payload, robot pose in the world) when
-/// two or more of them have a covariance; `None` otherwise.
-pub fn localization(mapped: &[(usize, String, PoseWithCovariance)]) -> Option<LocalizationDto> {
-    let usable: Vec<&(usize, String, PoseWithCovariance)> = mapped
-        .iter()
-        .filter(|(_, _, p)| p.covariance.is_some())
-        .collect();
-    let poses: Vec<PoseWithCovariance> = usable.iter().map(|(_, _, p)| *p).collect();
-    let fusion = fuse(&poses).ok()?;
-    Some(LocalizationDto {
-        robot_pose_in_world: FramePoseDto::from(&fusion.pose),
-        codes: usable
-            .iter()
-            .zip(&fusion.codes)
-            .map(|((index, payload, _), c)| LocalizationCodeDto {
-                marker_index: *index,
-                payload: payload.clone(),
-                residual_position_mm: Vec3Mm {
-                    x: c.residual[3],
-                    y: c.residual[4],
-                    z: c.residual[5],
-                },
-                residual_rotation_deg: residual_rotation_deg(&c.residual),
-                chi2: c.chi2,
-                outlier: c.outlier,
-            })
-            .collect(),
-        chi2_gate: CHI2_GATE_6DOF,
-    })
 }

@@ -1,9 +1,13 @@
-//! Wire types shared by the HTTP service and the CLI, and the calls behind both.
+//! Wire types shared by the HTTP service, the CLI and the stream: the request DTOs and their
+//! validation into the application layer's [`crate::app::Setup`], the answer DTOs mapped
+//! from its answers, and the one mapping from domain errors to problem documents
+//! ([`refusal`]).
 //!
 //! `qrpose estimate REQUEST.json` and `POST /v1/pose/corners` both call
-//! [`estimate_corners`], so their JSON is the same field for field. Everything a client can
-//! get wrong is refused here as a [`problem::Problem`]. No HTTP framework is named in this
-//! module.
+//! [`estimate_corners`] (validate, [`crate::app::estimate_corners`], map), so their JSON is
+//! the same field for field; the image forms do the same through [`image`]. Everything a
+//! client can get wrong is refused here as a [`problem::Problem`]. No HTTP framework is
+//! named in this module.
 
 pub mod camera;
 pub mod context;
@@ -18,74 +22,12 @@ pub mod request;
 pub mod response;
 pub mod site;
 
-pub use corners::estimate_corners_in;
-use problem::Problem;
-use request::CornersRequest;
-use response::PoseResponse;
-
-/// Validates a corners request and estimates the pose, without a site
-/// ([`estimate_corners_in`]).
-///
-/// # Errors
-/// A [`Problem`] (4xx) for anything wrong with the request, including 422
-/// `numerically_degenerate` when a number of the result is not finite (inputs at magnitudes
-/// such as 1e150 px). Non-convergence is not an error: the response says `converged: false`.
-pub fn estimate_corners(request: &CornersRequest) -> Result<PoseResponse, Problem> {
-    estimate_corners_in(request, None)
-}
-
-/// Largest magnitude (and inverse of the smallest) of a ray coordinate, of the corners'
-/// spread in ray space and of the marker size that the solvers are given. Their least
-/// squares multiply up to four such numbers (and square the result), so each must keep its
-/// fourth power well inside double precision (about 1e±308): 1e±75 does. Physical inputs
-/// are nowhere near: a ray coordinate of 1e3 is 89.94° off axis.
-pub const MAX_SOLVER_MAGNITUDE: f64 = 1e75;
-
-/// Refuses a valid request whose scale the solvers' arithmetic cannot hold (corners at
-/// 1e200 px, a focal length of 1e-200 px), before solving: the solvers would overflow to
-/// infinity or underflow to zero and report a degenerate homography or a pose of NaNs.
-///
-/// # Errors
-/// 422 `numerically_degenerate` naming the corner list.
-fn check_arithmetic_range(valid: &request::ValidCornersRequest) -> Result<(), Problem> {
-    let s = &valid.setup;
-    // A corner that cannot be undistorted is the estimator's to report.
-    let Ok(rays) = valid
-        .quad
-        .paper_order()
-        .iter()
-        .map(|p| s.camera.normalize(p))
-        .collect::<Result<Vec<_>, _>>()
-    else {
-        return Ok(());
-    };
-    let largest = rays
-        .iter()
-        .flat_map(|r| [r.x().abs(), r.y().abs()])
-        .fold(0.0, f64::max);
-    let spread = rays
-        .iter()
-        .flat_map(|a| rays.iter().map(move |b| (a.0 - b.0).norm()))
-        .fold(0.0, f64::max);
-    let in_range = |v: f64| (1.0 / MAX_SOLVER_MAGNITUDE..=MAX_SOLVER_MAGNITUDE).contains(&v);
-    let size = s.marker.size_mm();
-    if largest <= MAX_SOLVER_MAGNITUDE && in_range(spread) && in_range(size) {
-        return Ok(());
-    }
-    Err(problem::Problem::new(
-        problem::ErrorCode::NumericallyDegenerate,
-        format!(
-            "the corners span {spread:e} and reach {largest:e} focal lengths off axis, and the \
-             marker is {size:e} mm: beyond 1e±75, where the solvers' arithmetic overflows or \
-             underflows in double precision"
-        ),
-    )
-    .with_field(valid.corners_pointer))
-}
+pub use corners::estimate_corners;
 
 #[cfg(test)]
 mod tests {
     use super::problem::{ErrorCode, parse_json};
+    use super::request::CornersRequest;
     use super::*;
     use serde_json::{Value, json};
 
@@ -144,7 +86,7 @@ mod tests {
 
     fn run(body: &Value) -> Result<response::PoseResponse, problem::Problem> {
         let bytes = serde_json::to_vec(body).expect("serialisable");
-        parse_json::<CornersRequest>(&bytes).and_then(|r| estimate_corners(&r))
+        parse_json::<CornersRequest>(&bytes).and_then(|r| estimate_corners(&r, None))
     }
 
     #[test]
@@ -442,7 +384,7 @@ mod tests {
             vec![2.0, 2.0],
             vec![1.0, 2.0],
         ]);
-        let p = estimate_corners(&req).expect_err("infinite corner");
+        let p = estimate_corners(&req, None).expect_err("infinite corner");
         assert_eq!(
             (p.code, p.field.as_deref()),
             (ErrorCode::NonFiniteNumber, Some("/corners_px/1"))

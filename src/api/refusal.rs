@@ -5,19 +5,20 @@
 //! Fields are JSON pointers into the request body (`/camera/fx_px`); the image query form
 //! renames them to its parameters (`image::query`).
 
+use super::context::unknown_marker_size;
 use super::problem::{ErrorCode, Problem};
-use super::response::PoseResponse;
+use crate::app::{CornersError, ImageError};
 use crate::detect::{
     DetectError,
     decode::DecodeError,
     pipeline::{MarkerError, Points},
 };
-use crate::estimate::{EstimateError, PoseEstimate};
+use crate::estimate::EstimateError;
 use crate::geometry::{
-    camera::{Camera, CameraError, CameraParam},
-    marker::Marker,
+    camera::{CameraError, CameraParam},
     quad::QuadError,
 };
+use qrpose_site::Site;
 
 /// The JSON pointer of a camera parameter below the camera object.
 fn camera_param_name(param: CameraParam) -> String {
@@ -77,6 +78,30 @@ pub fn problem_from_estimate_error(err: EstimateError, corners_pointer: &str) ->
     }
 }
 
+/// The problem for a corners request the application refused; `corners_pointer` names the
+/// corner list.
+pub fn problem_from_corners_error(
+    err: CornersError,
+    corners_pointer: &str,
+    site: Option<&Site>,
+    payload: Option<&str>,
+) -> Problem {
+    match err {
+        CornersError::UnknownMarkerSize => {
+            unknown_marker_size(site, payload).with_field("/payload")
+        }
+        CornersError::Estimate(e) => problem_from_estimate_error(e, corners_pointer),
+    }
+}
+
+/// The problem for a photo the application could not read at all.
+pub fn problem_from_image_error(err: &ImageError) -> Problem {
+    match err {
+        ImageError::Decode(e) => problem_from_decode_error(e),
+        ImageError::Detect(e) => problem_from_detect_error(e),
+    }
+}
+
 /// The problem for a refused quadrilateral; `corners_pointer` names the corner list.
 pub fn problem_from_quad_error(err: QuadError, corners_pointer: &str) -> Problem {
     let (code, index) = match err {
@@ -113,9 +138,18 @@ pub fn problem_from_detect_error(err: &DetectError) -> Problem {
 }
 
 /// The problem of marker `index` of an image response, whose pose could not be solved; its
-/// `field` points at the marker's corners or finder corners in the response.
-pub fn problem_from_marker_error(err: MarkerError, index: usize) -> Problem {
+/// `field` points at the marker's corners or finder corners in the response, or at its
+/// payload for a code the site cannot size.
+pub fn problem_from_marker_error(
+    err: MarkerError,
+    index: usize,
+    site: Option<&Site>,
+    payload: Option<&str>,
+) -> Problem {
     match err {
+        MarkerError::UnknownSize => {
+            unknown_marker_size(site, payload).with_field(format!("/markers/{index}/payload"))
+        }
         MarkerError::Corners(e) => {
             problem_from_quad_error(e, &format!("/markers/{index}/corners_px"))
         }
@@ -126,78 +160,5 @@ pub fn problem_from_marker_error(err: MarkerError, index: usize) -> Problem {
             };
             problem_from_estimate_error(source, &format!("/markers/{index}/{list}"))
         }
-    }
-}
-
-/// The `pose` and `problem` of marker `index` of an image response, solved from
-/// `points_used`: the wire pose when it was solved and every number of it is finite;
-/// otherwise `pose: null` and the marker's own problem (its [`MarkerError`], or 422
-/// `numerically_degenerate` naming its corners when a number came out NaN or infinite).
-pub fn marker_pose_or_problem(
-    pose: &Result<PoseEstimate, MarkerError>,
-    points_used: Points,
-    camera: &Camera,
-    marker: &Marker,
-    elapsed_us: f64,
-    index: usize,
-) -> (Option<PoseResponse>, Option<Problem>) {
-    let list = match points_used {
-        Points::Corners => "corners_px",
-        Points::Finders => "finder_corners_px",
-    };
-    match pose {
-        Ok(estimate) => {
-            let pointer = format!("/markers/{index}/{list}");
-            match PoseResponse::try_new(estimate, camera, marker, elapsed_us, &pointer) {
-                Ok(pose) => (Some(pose), None),
-                Err(problem) => (None, Some(problem)),
-            }
-        }
-        Err(err) => (None, Some(problem_from_marker_error(*err, index))),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::estimate::{ValidSolver, estimate_pose};
-    use crate::geometry::{frames::PixelPoint, marker::CornerOrder, quad::ImageQuad};
-
-    #[test]
-    fn a_marker_pose_with_a_non_finite_number_is_null_with_its_problem() {
-        let camera = Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("camera");
-        let marker = Marker::try_new(50.0).expect("marker");
-        let corners = [
-            (589.2, 309.8),
-            (689.9, 311.4),
-            (688.1, 411.6),
-            (588.0, 409.5),
-        ]
-        .map(|(u, v)| PixelPoint::new(u, v));
-        let quad = ImageQuad::try_new(corners, CornerOrder::Qr).expect("quad");
-        let good: Result<PoseEstimate, MarkerError> =
-            Ok(estimate_pose(&quad, &camera, &marker, &ValidSolver::default()).expect("a pose"));
-        let (pose, problem) =
-            marker_pose_or_problem(&good, Points::Corners, &camera, &marker, 1.0, 0);
-        assert!(pose.is_some() && problem.is_none());
-
-        let mut spoiled = good.clone();
-        if let Ok(estimate) = spoiled.as_mut() {
-            estimate.centre_mm.z = f64::NAN;
-        }
-        let (pose, problem) =
-            marker_pose_or_problem(&spoiled, Points::Finders, &camera, &marker, 1.0, 3);
-        assert!(pose.is_none());
-        let problem = problem.expect("a problem");
-        assert_eq!(problem.code, ErrorCode::NumericallyDegenerate);
-        assert_eq!(
-            problem.field.as_deref(),
-            Some("/markers/3/finder_corners_px")
-        );
-        assert!(
-            problem.detail.contains("/position_mm/z"),
-            "{}",
-            problem.detail
-        );
     }
 }

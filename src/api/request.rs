@@ -7,9 +7,10 @@
 
 pub use super::camera::{CameraDto, DistortionDto};
 use super::context::{missing_marker, resolve_camera, resolve_marker};
-pub use super::frames::{PriorDto, ValidPrior};
+pub use super::frames::PriorDto;
 use super::problem::{ErrorCode, Problem};
 use super::refusal::{problem_from_estimate_error, problem_from_quad_error};
+use crate::app::{Setup, Sizing};
 use crate::estimate::{
     DEFAULT_CORNER_SIGMA_PX, DEFAULT_GAIN, DEFAULT_INITIAL_Z_MM, DEFAULT_MAX_ITERATIONS,
     DEFAULT_TOLERANCE_MM, DepthNewtonParams, MAX_ITERATIONS_LIMIT, Method, PaperParams,
@@ -21,8 +22,10 @@ use crate::geometry::{
     marker::{CornerOrder, Marker, MarkerError},
     quad::ImageQuad,
 };
-use qrpose_site::{Site, SiteCamera, SizeSource};
+use qrpose_site::Site;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+use std::time::Instant;
 use utoipa::ToSchema;
 
 /// How the four corners are listed.
@@ -86,7 +89,7 @@ impl From<Method> for MethodDto {
 pub struct MarkerDto {
     /// Side of the QR symbol, mm: outer edge of one finder pattern to the outer edge of the
     /// other, quiet zone excluded.
-    #[schema(example = 50.0)]
+    #[schema(example = 50.0, exclusive_minimum = 0)]
     pub size_mm: f64,
 }
 
@@ -109,33 +112,35 @@ fn default_corner_sigma_px() -> f64 {
 pub struct SolverDto {
     /// The solver (default `reprojection`).
     #[serde(default)]
+    #[schema(default = MethodDto::default)]
     pub method: MethodDto,
     /// Starting depth of every corner, mm, in (0, 1e7]. `paper`: z0 (default 450, as in the
     /// paper). `depth-newton`: replaces its closed-form start. Unused by `reprojection`.
-    #[schema(example = 450.0)]
+    #[schema(example = 450.0, exclusive_minimum = 0, maximum = 1e7)]
     pub initial_z_mm: Option<f64>,
     /// `paper` only: updating coefficient k of Eq. 12, in (0, 10]. Default 1.
     #[serde(default = "default_gain")]
-    #[schema(example = 1.0)]
+    #[schema(example = 1.0, default = default_gain, exclusive_minimum = 0, maximum = 10)]
     pub gain: f64,
     /// `paper` only: convergence threshold e_d on Σ|Δz| (Eq. 13), mm, in (0, 1e6]. Default 1.
     #[serde(default = "default_tolerance_mm")]
-    #[schema(example = 1.0)]
+    #[schema(example = 1.0, default = default_tolerance_mm, exclusive_minimum = 0, maximum = 1e6)]
     pub tolerance_mm: f64,
     /// Iteration limit of every method, 1 to 10000. Default 30.
     #[serde(
         default = "default_max_iterations",
         deserialize_with = "super::integral::deserialize"
     )]
-    #[schema(example = 30, minimum = 1, maximum = 10000)]
+    #[schema(example = 30, default = default_max_iterations, minimum = 1, maximum = 10000)]
     pub max_iterations: u64,
     /// Return the per-iteration trace (corner depths and Σ|Δz|). Default false.
     #[serde(default)]
+    #[schema(default = false)]
     pub trace: bool,
     /// `reprojection` only: corner noise σ per coordinate, px, in (0, 100], for the pose
     /// covariance. Default 0.5.
     #[serde(default = "default_corner_sigma_px")]
-    #[schema(example = 0.5)]
+    #[schema(example = 0.5, default = default_corner_sigma_px, exclusive_minimum = 0, maximum = 100)]
     pub corner_sigma_px: f64,
 }
 
@@ -166,14 +171,15 @@ impl Default for SolverDto {
 pub struct CornersRequest {
     /// Four corners in pixels, `[u, v]` each (u right, v down, integer = pixel centre), in
     /// `corner_order`. Give this or `corners_mm`.
-    #[schema(value_type = Option<Vec<[f64; 2]>>)]
+    #[schema(value_type = Option<Vec<[f64; 2]>>, min_items = 4, max_items = 4)]
     pub corners_px: Option<Vec<Vec<f64>>>,
     /// Four corners in image-plane millimetres (the paper's form, x' = x_n · f), with
     /// `camera.focal_length_mm`. Give this or `corners_px`.
-    #[schema(value_type = Option<Vec<[f64; 2]>>)]
+    #[schema(value_type = Option<Vec<[f64; 2]>>, min_items = 4, max_items = 4)]
     pub corners_mm: Option<Vec<Vec<f64>>>,
     /// Order of the corners (default `qr`).
     #[serde(default)]
+    #[schema(default = CornerOrderDto::default)]
     pub corner_order: CornerOrderDto,
     /// Camera intrinsics, or `{"id": …}` naming a camera of the loaded site.
     pub camera: CameraDto,
@@ -201,19 +207,6 @@ pub enum CornersUnit {
     Px,
     /// Image-plane millimetres.
     Mm,
-}
-
-/// Everything an estimate needs besides the corners, validated.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PoseSetup {
-    /// The camera; for `corners_mm` with a pixel size, a pixel camera with its centre at 0.
-    pub camera: Camera,
-    /// The marker.
-    pub marker: Marker,
-    /// The solver, range-checked.
-    pub solver: ValidSolver,
-    /// Image-plane mm per pixel when mm corners are converted to pixels.
-    pub mm_per_px: Option<f64>,
 }
 
 impl SolverDto {
@@ -289,25 +282,6 @@ impl MarkerDto {
     }
 }
 
-/// Validates camera, marker and solver for corners in `unit`, without a site.
-///
-/// # Errors
-/// The first problem found, camera first.
-pub fn pose_setup(
-    camera: &CameraDto,
-    marker: &MarkerDto,
-    solver: &SolverDto,
-    unit: CornersUnit,
-) -> Result<PoseSetup, Problem> {
-    let resolved = resolve_camera(camera, unit, None)?;
-    Ok(PoseSetup {
-        camera: resolved.camera,
-        marker: marker.to_marker()?,
-        solver: solver.to_solver()?,
-        mm_per_px: resolved.mm_per_px,
-    })
-}
-
 /// Exactly four `[u, v]` pairs, or the problem naming the list or the bad pair.
 ///
 /// # Errors
@@ -334,40 +308,32 @@ pub fn four_corners(corners: &[Vec<f64>], pointer: &str) -> Result<[[f64; 2]; 4]
     Ok(four)
 }
 
-/// A validated corners request: the quadrilateral and everything else.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ValidCornersRequest {
+/// A validated corners request: the setup, the quadrilateral and what names them.
+#[derive(Debug, Clone)]
+pub struct ValidCorners {
+    /// Camera, size, solver, prior and site.
+    pub setup: Setup,
     /// The four corners in the camera's image units.
     pub quad: ImageQuad,
-    /// Camera, marker, parameters.
-    pub setup: PoseSetup,
+    /// The code's payload, for the site's map and priors.
+    pub payload: Option<String>,
     /// `/corners_px` or `/corners_mm`, to name corners in later errors.
     pub corners_pointer: &'static str,
-    /// Where the marker size came from.
-    pub size_source: SizeSource,
-    /// The prior, validated.
-    pub prior: Option<ValidPrior>,
+    /// When validation began: the answer's `elapsed_us` counts from here.
+    pub started: Instant,
 }
 
 impl CornersRequest {
-    /// Validates the whole request without a site.
-    ///
-    /// # Errors
-    /// A [`Problem`] naming the first field at fault.
-    pub fn validate(&self) -> Result<ValidCornersRequest, Problem> {
-        self.validate_in(None).map(|(valid, _)| valid)
-    }
-
-    /// Validates the whole request against `site`: `camera.id` names a site camera (also
-    /// returned), and a missing marker size comes from the site's rules for `payload`.
+    /// Validates the whole request against `site` (none: intrinsics and size must be in
+    /// the request): `camera.id` names a site camera, and a missing marker size comes from
+    /// the site's rules for `payload`.
     ///
     /// # Errors
     /// A [`Problem`] naming the first field at fault: `unknown_camera`,
-    /// `unknown_marker_size` (field `/payload`), `invalid_prior` among the others.
-    pub fn validate_in<'a>(
-        &self,
-        site: Option<&'a Site>,
-    ) -> Result<(ValidCornersRequest, Option<&'a SiteCamera>), Problem> {
+    /// `unknown_marker_size` (field `/payload`), `invalid_prior`, `numerically_degenerate`
+    /// among the others.
+    pub fn validate(&self, site: Option<Arc<Site>>) -> Result<ValidCorners, Problem> {
+        let started = Instant::now();
         // Without a site a missing marker is refused first, as the required field it was.
         if self.marker.is_none() && site.is_none() {
             return Err(missing_marker());
@@ -390,22 +356,17 @@ impl CornersRequest {
                 .with_field("/corners_mm"));
             }
         };
-        let resolved = resolve_camera(&self.camera, unit, site)?;
-        let (marker, size_source) = resolve_marker(
+        let resolved = resolve_camera(&self.camera, unit, site.as_deref())?;
+        let (marker, source) = resolve_marker(
             self.marker.as_ref(),
-            site,
+            site.as_deref(),
             self.payload.as_deref(),
             "/payload",
         )?;
-        let setup = PoseSetup {
-            camera: resolved.camera,
-            marker,
-            solver: self.solver.to_solver()?,
-            mm_per_px: resolved.mm_per_px,
-        };
+        let solver = self.solver.to_solver()?;
         let prior = self.prior.as_ref().map(PriorDto::validate).transpose()?;
         let four = four_corners(corners, pointer)?;
-        let scale = setup.mm_per_px.map_or(1.0, |mm_per_px| 1.0 / mm_per_px);
+        let scale = resolved.mm_per_px.map_or(1.0, |mm_per_px| 1.0 / mm_per_px);
         let points = four.map(|[u, v]| PixelPoint::new(u * scale, v * scale));
         let overflowed = four.iter().zip(&points).any(|([u, v], p)| {
             u.is_finite() && v.is_finite() && !(p.u().is_finite() && p.v().is_finite())
@@ -417,22 +378,80 @@ impl CornersRequest {
                 ErrorCode::NumericallyDegenerate,
                 format!(
                     "the corners in pixels ({pointer} divided by the pixel size of {:e} mm) overflow double precision",
-                    setup.mm_per_px.unwrap_or(1.0)
+                    resolved.mm_per_px.unwrap_or(1.0)
                 ),
             )
             .with_field(pointer));
         }
         let quad = ImageQuad::try_new(points, self.corner_order.into())
             .map_err(|e| problem_from_quad_error(e, pointer))?;
-        Ok((
-            ValidCornersRequest {
-                quad,
-                setup,
-                corners_pointer: pointer,
-                size_source,
+        check_arithmetic_range(&quad, &resolved.camera, &marker, pointer)?;
+        let site_camera = resolved.site_camera.cloned();
+        Ok(ValidCorners {
+            setup: Setup {
+                camera: resolved.camera,
+                site_camera,
+                site,
+                sizing: Sizing::Fixed { marker, source },
+                solver,
                 prior,
             },
-            resolved.site_camera,
-        ))
+            quad,
+            payload: self.payload.clone(),
+            corners_pointer: pointer,
+            started,
+        })
     }
+}
+
+/// Largest magnitude (and inverse of the smallest) of a ray coordinate, of the corners'
+/// spread in ray space and of the marker size that the solvers are given. Their least
+/// squares multiply up to four such numbers (and square the result), so each must keep its
+/// fourth power well inside double precision (about 1e±308): 1e±75 does. Physical inputs
+/// are nowhere near: a ray coordinate of 1e3 is 89.94° off axis.
+pub const MAX_SOLVER_MAGNITUDE: f64 = 1e75;
+
+/// Refuses a valid request whose scale the solvers' arithmetic cannot hold (corners at
+/// 1e200 px, a focal length of 1e-200 px), before solving: the solvers would overflow to
+/// infinity or underflow to zero and report a degenerate homography or a pose of NaNs.
+///
+/// # Errors
+/// 422 `numerically_degenerate` naming the corner list.
+fn check_arithmetic_range(
+    quad: &ImageQuad,
+    camera: &Camera,
+    marker: &Marker,
+    corners_pointer: &str,
+) -> Result<(), Problem> {
+    // A corner that cannot be undistorted is the estimator's to report.
+    let Ok(rays) = quad
+        .paper_order()
+        .iter()
+        .map(|p| camera.normalize(p))
+        .collect::<Result<Vec<_>, _>>()
+    else {
+        return Ok(());
+    };
+    let largest = rays
+        .iter()
+        .flat_map(|r| [r.x().abs(), r.y().abs()])
+        .fold(0.0, f64::max);
+    let spread = rays
+        .iter()
+        .flat_map(|a| rays.iter().map(move |b| (a.0 - b.0).norm()))
+        .fold(0.0, f64::max);
+    let in_range = |v: f64| (1.0 / MAX_SOLVER_MAGNITUDE..=MAX_SOLVER_MAGNITUDE).contains(&v);
+    let size = marker.size_mm();
+    if largest <= MAX_SOLVER_MAGNITUDE && in_range(spread) && in_range(size) {
+        return Ok(());
+    }
+    Err(Problem::new(
+        ErrorCode::NumericallyDegenerate,
+        format!(
+            "the corners span {spread:e} and reach {largest:e} focal lengths off axis, and the \
+             marker is {size:e} mm: beyond 1e±75, where the solvers' arithmetic overflows or \
+             underflows in double precision"
+        ),
+    )
+    .with_field(corners_pointer))
 }

@@ -7,14 +7,17 @@ use super::{EXIT_BAD_INPUT, EXIT_BROKEN_PIPE};
 use clap::Args;
 use qrpose::annotate::{OutputFormat, annotated_image};
 use qrpose::api::{
-    estimate_corners_in,
-    image::{ImageLimits, ImageQuery, ImageResponse, estimate_image_from_query_in},
+    estimate_corners,
+    image::{ImageQuery, ImageResponse, respond},
     problem::{Problem, parse_json},
 };
-use qrpose_site::Site;
+use qrpose::app::ImageLimits;
+use qrpose::detect::cancel::CancelFlag;
+use qrpose::geometry::camera::Camera;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 
 /// Arguments of `estimate`.
 #[derive(Debug, Args)]
@@ -103,14 +106,17 @@ fn run_image(path: &PathBuf, args: &EstimateArgs) -> ExitCode {
         }
     };
     let site = match super::site::load_optional(args.site.as_deref()) {
-        Ok(site) => site,
+        Ok(site) => site.map(Arc::new),
         Err(code) => return code,
     };
-    let limits = ImageLimits::default();
-    match estimate_image_from_query_in(&bytes, args.params.clone(), &limits, site.as_ref()) {
+    let setup = match args.params.clone().setup(&ImageLimits::default(), site) {
+        Ok(setup) => setup,
+        Err(problem) => return report_problem(&problem),
+    };
+    match respond(&setup, &bytes, CancelFlag::new()) {
         Ok(response) => {
             if let Some(out) = &args.annotate
-                && let Err(code) = write_annotated(&bytes, &response, args, site.as_ref(), out)
+                && let Err(code) = write_annotated(&bytes, &response, &setup.pose.camera, out)
             {
                 return code;
             }
@@ -120,25 +126,16 @@ fn run_image(path: &PathBuf, args: &EstimateArgs) -> ExitCode {
     }
 }
 
-/// Writes the annotated photo of `--annotate`.
+/// Writes the annotated photo of `--annotate`: the poses of `response`, computed with
+/// `camera`, drawn on the photo `bytes`.
 fn write_annotated(
     bytes: &[u8],
     response: &ImageResponse,
-    args: &EstimateArgs,
-    site: Option<&Site>,
+    camera: &Camera,
     out: &Path,
 ) -> Result<(), ExitCode> {
-    let camera = args
-        .params
-        .clone()
-        .into_request()
-        .and_then(|request| request.validate_in(ImageLimits::default().max_detect_ms, site))
-        .map_err(|problem| report_problem(&ImageQuery::problem_in_query_terms(problem)))?
-        .0
-        .setup
-        .camera;
     let format = OutputFormat::from_file_name(out);
-    let image = annotated_image(bytes, response, &camera, format).map_err(|e| {
+    let image = annotated_image(bytes, response, camera, format).map_err(|e| {
         eprintln!("qrpose: cannot annotate {}: {e}", out.display());
         ExitCode::FAILURE
     })?;
@@ -165,10 +162,10 @@ pub fn run(args: &EstimateArgs) -> ExitCode {
         }
     };
     let site = match super::site::load_optional(args.site.as_deref()) {
-        Ok(site) => site,
+        Ok(site) => site.map(Arc::new),
         Err(code) => return code,
     };
-    match parse_json(&bytes).and_then(|request| estimate_corners_in(&request, site.as_ref())) {
+    match parse_json(&bytes).and_then(|request| estimate_corners(&request, site)) {
         Ok(response) => print_json(&response, args.pretty),
         Err(problem) => report_problem(&problem),
     }

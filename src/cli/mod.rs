@@ -44,7 +44,7 @@ pub enum Command {
     /// Run the HTTP service (docs/service.md) until SIGTERM or SIGINT.
     Serve(qrpose::config::ServeArgs),
     /// Print the OpenAPI document (what `openapi/openapi.json` holds).
-    Openapi,
+    Openapi(openapi::OpenapiArgs),
     /// Exit 0 when the service's /healthz answers 200 (for container health checks).
     Healthcheck(healthcheck::HealthcheckArgs),
     /// Render a synthetic photo of a QR code at a given pose; prints its ground truth.
@@ -102,7 +102,7 @@ pub fn run(cli: Cli) -> ExitCode {
             ExitCode::FAILURE
         }),
         Command::Serve(args) => serve::run(args),
-        Command::Openapi => openapi::run(),
+        Command::Openapi(args) => openapi::run(&args),
         Command::Healthcheck(args) => healthcheck::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Site(args) => site::run(&args),

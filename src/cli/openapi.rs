@@ -1,11 +1,27 @@
-//! `qrpose openapi`: prints the OpenAPI document (what `openapi/openapi.json` holds).
+//! `qrpose openapi [--site]`: prints the OpenAPI document of a server without a site (what
+//! `openapi/openapi.json` holds) or with one (`openapi/openapi-site.json`).
 
-use qrpose::http::openapi::openapi_json;
+use clap::Args;
+use qrpose::detect::Backend;
+use qrpose::http::openapi::{Served, openapi_json};
 use std::process::ExitCode;
 
-/// Runs `openapi`.
-pub fn run() -> ExitCode {
-    match openapi_json() {
+/// Arguments of `openapi`.
+#[derive(Debug, Args)]
+pub struct OpenapiArgs {
+    /// The document of a server with a site loaded (`qrpose serve --site`): cameras by id,
+    /// marker sizes optional.
+    #[arg(long)]
+    pub site: bool,
+}
+
+/// Runs `openapi`: the document of this build.
+pub fn run(args: &OpenapiArgs) -> ExitCode {
+    let served = Served {
+        site: args.site,
+        zxing_cpp: Backend::ZxingCpp.is_built(),
+    };
+    match openapi_json(served) {
         Ok(json) => {
             print!("{json}");
             ExitCode::SUCCESS

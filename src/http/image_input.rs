@@ -6,7 +6,8 @@
 //!   ([`ImageQuery`]); a problem's `field` names the query parameter.
 //! - `multipart/form-data` with the parts `image` (the bytes) and `request` (JSON,
 //!   `ImageRequest`); a problem's `field` names the part, or is a JSON pointer into the
-//!   `request` part. Its JSON is parsed later, on the estimation worker.
+//!   `request` part. Its JSON is parsed later, on the estimation worker. Query parameters
+//!   may come with it: a field given in both is the part's (`api::image::merge`).
 //!
 //! The body is read whole (at most the body limit, as every body) before anything is judged,
 //! so that a client still sending a large upload reads its answer instead of a connection
@@ -20,12 +21,15 @@ use super::{
     state::AppState,
 };
 use crate::api::{
-    image::ImageQuery,
+    image::{ImageQuery, merge::request_of_parts},
     problem::{ErrorCode, Problem},
 };
+use crate::app::{ImageLimits, ImageSetup};
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Multipart, Request, multipart::MultipartError};
 use axum::http::StatusCode;
+use qrpose_site::Site;
+use std::sync::Arc;
 
 /// The raw-body media type of a JPEG.
 pub const JPEG: &str = "image/jpeg";
@@ -50,12 +54,15 @@ pub enum ImageInput {
         /// The query parameters.
         query: Box<ImageQuery>,
     },
-    /// A multipart body: the image part and the request part's JSON, not yet parsed.
+    /// A multipart body: the image part and the request part's JSON, not yet parsed, and
+    /// the query parameters, if the URL has any (merged under the part, [`merge`]).
     Multipart {
         /// The `image` part.
         image: Bytes,
         /// The `request` part.
         request_json: Bytes,
+        /// The query parameters, parsed.
+        query: Option<Box<ImageQuery>>,
     },
 }
 
@@ -64,6 +71,34 @@ impl ImageInput {
     pub fn image(&self) -> &Bytes {
         match self {
             Self::Raw { image, .. } | Self::Multipart { image, .. } => image,
+        }
+    }
+
+    /// The request validated against `site` into the application's setup: the query
+    /// parameters of a raw body, or the multipart `request` part (with any query parameters
+    /// under it). Parsing the part's JSON is CPU work: call it on an estimation worker.
+    ///
+    /// # Errors
+    /// The request's problems; `field` names a query parameter when the value came from
+    /// the query.
+    pub fn setup(
+        &self,
+        limits: &ImageLimits,
+        site: Option<Arc<Site>>,
+    ) -> Result<ImageSetup, Problem> {
+        match self {
+            Self::Raw { query, .. } => ImageQuery::clone(query).setup(limits, site),
+            Self::Multipart {
+                request_json,
+                query,
+                ..
+            } => {
+                let parts = request_of_parts(request_json, query.as_deref())?;
+                parts
+                    .request
+                    .setup(limits, site)
+                    .map_err(|problem| parts.problem_as_sent(problem))
+            }
         }
     }
 
@@ -154,18 +189,16 @@ async fn multipart_input(
     permit: BudgetPermit,
 ) -> Result<ImageInput, ApiError> {
     let limit_bytes = state.settings.body_limit_bytes;
-    if let Some(parameter) = first_query_parameter(request.uri().query()) {
-        extract::discard_body(request, limit_bytes).await;
-        return Err(Problem::new(
-            ErrorCode::UnknownField,
-            format!(
-                "query parameters are read only with a raw image body; with {MULTIPART} put \
-                 {parameter} into the `{REQUEST_PART}` part"
-            ),
-        )
-        .with_field(parameter)
-        .into());
-    }
+    let query = match request.uri().query() {
+        Some(q) if !q.is_empty() => match extract::parse_query::<ImageQuery>(Some(q)) {
+            Ok(query) => Some(Box::new(query)),
+            Err(refusal) => {
+                extract::discard_body(request, limit_bytes).await;
+                return Err(refusal);
+            }
+        },
+        _ => None,
+    };
     let request = extract::buffer_body(request, limit_bytes, |body| budgeted(body, permit))
         .await
         .map_err(|e| body_error(e, ErrorCode::MalformedMultipart))?;
@@ -215,14 +248,8 @@ async fn multipart_input(
     Ok(ImageInput::Multipart {
         image,
         request_json,
+        query,
     })
-}
-
-/// The name of the first query parameter, if the query has any.
-fn first_query_parameter(query: Option<&str>) -> Option<String> {
-    form_urlencoded::parse(query?.as_bytes())
-        .next()
-        .map(|(name, _)| name.into_owned())
 }
 
 fn body_error(err: BodyError, unreadable: ErrorCode) -> ApiError {

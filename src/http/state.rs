@@ -114,6 +114,11 @@ pub struct AppState {
 }
 
 impl AppState {
+    /// What an image request may cost, from the settings.
+    pub fn image_limits(&self) -> crate::app::ImageLimits {
+        crate::app::ImageLimits::from(&*self.settings)
+    }
+
     /// Fresh state for `settings`: an empty queue, zeroed metrics, and the site file of
     /// `settings.site` loaded.
     ///

@@ -39,7 +39,7 @@ async fn answers_exactly_what_the_cli_estimate_prints() {
     let app = spawn_app().await;
     let bytes = serde_json::to_vec(&valid_request()).expect("serialisable");
     let expected = parse_json::<CornersRequest>(&bytes)
-        .and_then(|r| estimate_corners(&r))
+        .and_then(|r| estimate_corners(&r, None))
         .expect("a pose");
 
     // Act

@@ -3,9 +3,9 @@
 //! saturation. The bad inputs are in `image_bad_inputs`.
 
 use crate::helpers::{
-    PHOTO, PHOTO_PAYLOAD, PHOTO_QUERY, assert_problem, image_part, multipart_body, occupy_worker,
-    one_worker, photo_jpeg, photo_request, queue_reaches, render_photo, request_part, spawn_app,
-    spawn_app_with,
+    BOUNDARY, PHOTO, PHOTO_PAYLOAD, PHOTO_QUERY, assert_problem, image_part, multipart_body,
+    occupy_worker, one_worker, photo_jpeg, photo_request, queue_reaches, render_photo,
+    request_part, spawn_app, spawn_app_with,
 };
 use qrpose::api::image::{ImageResponse, MarkerResultDto, PointsDto};
 use qrpose::api::problem::ErrorCode;
@@ -117,6 +117,54 @@ async fn a_multipart_form_gives_the_same_answer_as_the_raw_body() {
     );
     assert_eq!(a.position_mm, b.position_mm);
     assert_eq!(a.rotation, b.rotation);
+}
+
+/// Issue 23: query parameters come with a multipart body too (as a generated client sends
+/// them): merged under the `request` part, the part's fields winning.
+#[tokio::test]
+async fn a_multipart_form_takes_query_parameters_under_its_part() {
+    // Arrange
+    let app = spawn_app().await;
+    let jpeg = photo_jpeg();
+    let mut without_camera = photo_request();
+    let camera = without_camera
+        .as_object_mut()
+        .and_then(|m| m.remove("camera"))
+        .expect("the photo request has a camera");
+    let part = serde_json::to_vec(&without_camera).expect("serialisable");
+    let camera_query: String = ["fx_px", "fy_px", "cx_px", "cy_px"]
+        .iter()
+        .map(|k| format!("{k}={}", camera[*k]))
+        .collect::<Vec<_>>()
+        .join("&");
+    let body = multipart_body(&[request_part(&part), image_part(&jpeg)]);
+    let content_type = format!("multipart/form-data; boundary={BOUNDARY}");
+
+    // Act
+    let camera_from_query = app
+        .post_image(&camera_query, body, Some(&content_type))
+        .await;
+    let both = app
+        .post_image(
+            &format!("{PHOTO_QUERY}&effort=thorough&method=paper"),
+            multipart_body(&[
+                request_part(&serde_json::to_vec(&photo_request()).expect("json")),
+                image_part(&jpeg),
+            ]),
+            Some(&content_type),
+        )
+        .await;
+
+    // Assert
+    let answer = image_response(camera_from_query).await;
+    assert_matches_truth(&answer, &PHOTO);
+    let answer = image_response(both).await;
+    let pose = answer.markers[0].pose.as_ref().expect("a pose");
+    assert_eq!(
+        serde_json::to_value(pose.diagnostics.method).expect("json"),
+        "paper",
+        "a field only the query gives is the query's"
+    );
 }
 
 #[tokio::test]

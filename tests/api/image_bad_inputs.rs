@@ -491,13 +491,39 @@ fn catalogue() -> Vec<Case> {
             UnknownVariant,
             Some("/detector"),
         ),
+        // Issue 23: query parameters with a multipart body are merged under the part; a
+        // refused value that came from the query is named by its parameter.
+        Case {
+            query: "fx_px=-5&fy_px=1000&cx_px=639.5&cy_px=359.5".to_owned(),
+            ..multipart(
+                "multipart with the camera in the query, refused",
+                &[
+                    image_part(&jpeg),
+                    request_part(&request_with("/camera", Value::Null)),
+                ],
+                InvalidCameraParameter,
+                Some("fx_px"),
+            )
+        },
+        Case {
+            query: "fx_px=one".to_owned(),
+            ..multipart(
+                "multipart with a malformed query parameter",
+                &[image_part(&jpeg), request_part(&request)],
+                MalformedQuery,
+                Some("fx_px"),
+            )
+        },
         Case {
             query: "fx_px=1000".to_owned(),
             ..multipart(
-                "multipart with query parameters",
-                &[image_part(&jpeg), request_part(&request)],
-                UnknownField,
-                Some("fx_px"),
+                "multipart with a refused part under a query",
+                &[
+                    image_part(&jpeg),
+                    request_part(&request_with("/detector", json!("opencv"))),
+                ],
+                UnknownVariant,
+                Some("/detector"),
             )
         },
     ];

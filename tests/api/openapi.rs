@@ -1,20 +1,43 @@
-//! The OpenAPI document: committed, printed by `qrpose openapi`, served at `/openapi.json`,
-//! all identical; and complete.
+//! The OpenAPI document: committed (without and with a site, for the default build),
+//! printed by `qrpose openapi [--site]`, served at `/openapi.json` as the server is
+//! configured, all identical; and complete.
 
 use crate::helpers::spawn_app;
-use qrpose::http::openapi::{REGENERATE, openapi_json};
+use qrpose::detect::Backend;
+use qrpose::http::openapi::{REGENERATE, Served, openapi_json};
 use reqwest::{StatusCode, header};
 use serde_json::Value;
 
 const COMMITTED: &str = include_str!("../../openapi/openapi.json");
+const COMMITTED_WITH_SITE: &str = include_str!("../../openapi/openapi-site.json");
+
+/// The configuration of the committed documents: the default build.
+fn committed(site: bool) -> Served {
+    Served {
+        site,
+        zxing_cpp: false,
+    }
+}
+
+/// This build's document without a site.
+fn this_build() -> String {
+    let served = Served {
+        site: false,
+        zxing_cpp: Backend::ZxingCpp.is_built(),
+    };
+    openapi_json(served).expect("a document")
+}
 
 #[test]
-fn the_committed_document_is_current() {
-    let current = openapi_json().expect("a document");
-    assert!(
-        current == COMMITTED,
-        "openapi/openapi.json is out of date; regenerate it with\n\n    {REGENERATE}\n"
-    );
+fn the_committed_documents_are_current() {
+    for (site, document) in [(false, COMMITTED), (true, COMMITTED_WITH_SITE)] {
+        let current = openapi_json(committed(site)).expect("a document");
+        assert!(
+            current == document,
+            "openapi/openapi{}.json is out of date; regenerate them with\n\n    {REGENERATE}\n",
+            if site { "-site" } else { "" }
+        );
+    }
 }
 
 #[tokio::test]
@@ -30,9 +53,15 @@ async fn the_served_document_is_the_committed_one() {
     assert_eq!(response.headers()[header::CONTENT_TYPE], "application/json");
     let served = response.text().await.expect("text");
     assert!(
-        served == COMMITTED,
+        served == this_build(),
         "GET /openapi.json differs; {REGENERATE}"
     );
+    if !Backend::ZxingCpp.is_built() {
+        assert!(
+            served == COMMITTED,
+            "GET /openapi.json differs; {REGENERATE}"
+        );
+    }
 }
 
 #[tokio::test]
@@ -47,7 +76,10 @@ async fn the_cli_prints_the_committed_document() {
     // Assert
     assert!(output.status.success(), "{output:?}");
     let printed = String::from_utf8(output.stdout).expect("UTF-8");
-    assert!(printed == COMMITTED, "qrpose openapi differs; {REGENERATE}");
+    assert!(
+        printed == this_build(),
+        "qrpose openapi differs; {REGENERATE}"
+    );
 }
 
 fn document() -> Value {
@@ -157,4 +189,102 @@ fn every_schema_and_field_is_described() {
         }
     }
     assert!(undocumented.is_empty(), "undocumented: {undocumented:?}");
+}
+
+#[tokio::test]
+async fn a_server_with_a_site_serves_the_site_document() {
+    // Arrange
+    let settings = qrpose::config::Settings {
+        site: Some(
+            concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/tests/fixtures/site/warehouse.yaml"
+            )
+            .into(),
+        ),
+        ..qrpose::config::Settings::default()
+    };
+    let app = crate::helpers::spawn_app_with(settings).await;
+
+    // Act
+    let served = app.get("/openapi.json").await.text().await.expect("text");
+
+    // Assert
+    let expected = openapi_json(Served {
+        site: true,
+        zxing_cpp: Backend::ZxingCpp.is_built(),
+    })
+    .expect("a document");
+    assert!(served == expected, "GET /openapi.json with a site differs");
+    if !Backend::ZxingCpp.is_built() {
+        assert!(served == COMMITTED_WITH_SITE, "{REGENERATE}");
+    }
+}
+
+/// The documents differ only where a site changes what is valid: without one the camera
+/// has no site-id form and the marker size is required.
+#[test]
+fn the_site_changes_the_camera_forms_and_the_marker_s_required_ness() {
+    let without: Value = serde_json::from_str(COMMITTED).expect("JSON");
+    let with: Value = serde_json::from_str(COMMITTED_WITH_SITE).expect("JSON");
+    let schemas = |d: &Value| d["components"]["schemas"].clone();
+    assert!(schemas(&without).get("CameraSiteId").is_none());
+    assert!(schemas(&with)["CameraSiteId"].is_object());
+    for name in ["PixelCornersRequest", "PlaneCornersRequest", "ImageRequest"] {
+        let required = |d: &Value| schemas(d)[name]["required"].clone();
+        let marker = Value::from("marker");
+        let has = |v: Value| v.as_array().is_some_and(|r| r.contains(&marker));
+        assert!(has(required(&without)), "{name} without a site");
+        assert!(!has(required(&with)), "{name} with a site");
+    }
+}
+
+/// Every bound the document states is the one the server validates with (the DTO
+/// attributes hold literals; this ties them to the constants).
+#[test]
+fn documented_ranges_are_the_validators_own() {
+    use qrpose::estimate::{
+        MAX_CORNER_SIGMA_PX, MAX_GAIN, MAX_INITIAL_Z_MM, MAX_ITERATIONS_LIMIT, MAX_TOLERANCE_MM,
+    };
+    let doc = document();
+    let solver = &doc["components"]["schemas"]["SolverDto"]["properties"];
+    let maximum = |field: &str| solver[field]["maximum"].as_f64().expect(field);
+    assert_eq!(maximum("initial_z_mm"), MAX_INITIAL_Z_MM);
+    assert_eq!(maximum("gain"), MAX_GAIN);
+    assert_eq!(maximum("tolerance_mm"), MAX_TOLERANCE_MM);
+    assert_eq!(maximum("corner_sigma_px"), MAX_CORNER_SIGMA_PX);
+    assert_eq!(maximum("max_iterations"), f64::from(MAX_ITERATIONS_LIMIT));
+    assert_eq!(solver["max_iterations"]["minimum"], 1);
+    for field in ["initial_z_mm", "gain", "tolerance_mm", "corner_sigma_px"] {
+        assert_eq!(solver[field]["exclusiveMinimum"], 0, "{field}");
+    }
+    let defaults = qrpose::api::request::SolverDto::default();
+    assert_eq!(solver["gain"]["default"], defaults.gain);
+    assert_eq!(solver["tolerance_mm"]["default"], defaults.tolerance_mm);
+    assert_eq!(solver["max_iterations"]["default"], defaults.max_iterations);
+    assert_eq!(
+        solver["corner_sigma_px"]["default"],
+        defaults.corner_sigma_px
+    );
+    let prior = &doc["components"]["schemas"]["MarkerPrior"]["properties"]["sigma_deg"];
+    assert_eq!(
+        prior["maximum"].as_f64(),
+        Some(qrpose::api::frames::MAX_PRIOR_SIGMA_DEG)
+    );
+    let image = &doc["paths"]["/v1/pose/image"]["post"]["parameters"];
+    let parameter = |name: &str| {
+        image
+            .as_array()
+            .and_then(|ps| ps.iter().find(|p| p["name"] == name))
+            .cloned()
+            .unwrap_or_else(|| panic!("{name}"))
+    };
+    assert_eq!(
+        parameter("gain")["schema"]["maximum"].as_f64(),
+        Some(MAX_GAIN)
+    );
+    assert_eq!(
+        parameter("max_iterations")["schema"]["maximum"].as_f64(),
+        Some(f64::from(MAX_ITERATIONS_LIMIT))
+    );
 }

@@ -7,6 +7,7 @@
 //! most one pass after it; `auto`'s later passes work on small crops, which keeps that
 //! overshoot to a few milliseconds.
 
+use crate::cancel::CancelFlag;
 use std::time::{Duration, Instant};
 
 /// How hard `auto` looks.
@@ -66,13 +67,43 @@ pub const THOROUGH_BASE_MS: f64 = 200.0;
 pub const THOROUGH_PER_MP_MS: f64 = 100.0;
 
 /// What detection may spend.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Budget {
     /// How hard to look.
     pub effort: Effort,
     /// Stop starting passes after this long; `None` for the effort's default for the image
     /// ([`Effort::default_deadline`]).
     pub max_detect: Option<Duration>,
+    /// Stop starting passes once this flag is raised (nobody waits for the answer any
+    /// more); the default flag is never raised.
+    pub cancel: CancelFlag,
+}
+
+impl Budget {
+    /// A budget of `effort` with the deadline `max_detect` (`None`: the effort's default),
+    /// never cancelled.
+    #[must_use]
+    pub fn new(effort: Effort, max_detect: Option<Duration>) -> Self {
+        Self {
+            effort,
+            max_detect,
+            cancel: CancelFlag::new(),
+        }
+    }
+
+    /// The same budget, stopped by `cancel` too.
+    #[must_use]
+    pub fn cancelled_by(self, cancel: CancelFlag) -> Self {
+        Self { cancel, ..self }
+    }
+
+    /// The deadline for an image of `pixels` pixels: the one asked for, else the effort's
+    /// default ([`Effort::default_deadline`]).
+    #[must_use]
+    pub fn deadline_for(&self, pixels: usize) -> Duration {
+        self.max_detect
+            .unwrap_or_else(|| self.effort.default_deadline(pixels))
+    }
 }
 
 /// One pass that ran.
@@ -90,21 +121,30 @@ pub struct PassReport {
 #[derive(Debug, Clone)]
 pub struct PassLog {
     deadline: Instant,
+    cancel: CancelFlag,
     /// The passes, in the order they ran.
     pub passes: Vec<PassReport>,
     /// A pass was skipped because the deadline had passed.
     pub budget_exhausted: bool,
     /// A pass was skipped because the caller cancelled the detection
-    /// ([`crate::cancel::CancelFlag`]): nobody waits for the answer any more.
+    /// ([`Budget::cancel`]): nobody waits for the answer any more.
     pub cancelled: bool,
 }
 
 impl PassLog {
-    /// A log whose deadline is `max_detect` from now.
+    /// A log whose deadline is `max_detect` from now, never cancelled.
     #[must_use]
     pub fn new(max_detect: Duration) -> Self {
+        Self::with_cancel(max_detect, CancelFlag::new())
+    }
+
+    /// A log whose deadline is `max_detect` from now and that stops once `cancel` is
+    /// raised.
+    #[must_use]
+    pub fn with_cancel(max_detect: Duration, cancel: CancelFlag) -> Self {
         Self {
             deadline: Instant::now() + max_detect,
+            cancel,
             passes: Vec::new(),
             budget_exhausted: false,
             cancelled: false,
@@ -112,9 +152,9 @@ impl PassLog {
     }
 
     /// Whether another pass may start; when not, the log records why work was skipped (the
-    /// deadline, or a cancellation of the current scope, [`crate::cancel::run_cancellable`]).
+    /// deadline, or the budget's [`CancelFlag`]).
     pub fn may_continue(&mut self) -> bool {
-        if crate::cancel::cancelled() {
+        if self.cancel.is_cancelled() {
             self.cancelled = true;
             false
         } else if Instant::now() < self.deadline {
@@ -183,14 +223,21 @@ mod tests {
     }
 
     #[test]
-    fn a_cancelled_scope_stops_further_passes_however_roomy_the_deadline() {
-        let flag = crate::cancel::CancelFlag::new();
-        crate::cancel::run_cancellable(&flag, || {
-            let mut log = PassLog::new(Duration::from_secs(60));
-            assert!(log.may_continue());
-            flag.cancel();
-            assert!(!log.may_continue());
-            assert!(log.cancelled && !log.budget_exhausted);
-        });
+    fn a_raised_flag_stops_further_passes_however_roomy_the_deadline() {
+        let flag = CancelFlag::new();
+        let mut log = PassLog::with_cancel(Duration::from_secs(60), flag.clone());
+        assert!(log.may_continue());
+        flag.cancel();
+        assert!(!log.may_continue());
+        assert!(log.cancelled && !log.budget_exhausted);
+    }
+
+    #[test]
+    fn a_budget_without_a_deadline_takes_the_effort_default() {
+        let hd = 1920 * 1080;
+        let budget = Budget::new(Effort::Fast, None);
+        assert_eq!(budget.deadline_for(hd), Effort::Fast.default_deadline(hd));
+        let capped = Budget::new(Effort::Fast, Some(Duration::from_millis(7)));
+        assert_eq!(capped.deadline_for(hd), Duration::from_millis(7));
     }
 }

@@ -95,8 +95,9 @@ pub fn find_candidates(
     image: &GrayImage,
     choice: DetectorChoice,
 ) -> Result<Vec<Candidate>, DetectError> {
-    let mut log = PassLog::new(Effort::Balanced.default_deadline(image.pixels().len()));
-    find_logged(image, choice, Effort::Balanced, &mut log)
+    let budget = Budget::default();
+    let mut log = PassLog::with_cancel(budget.deadline_for(image.pixels().len()), budget.cancel);
+    find_logged(image, choice, budget.effort, &mut log)
 }
 
 /// The candidates of `choice` at `effort`, passes recorded in `log` (whose deadline bounds
@@ -141,10 +142,8 @@ pub fn detect_within(
     choice: DetectorChoice,
     budget: &Budget,
 ) -> Result<Detection, DetectError> {
-    let deadline = budget
-        .max_detect
-        .unwrap_or_else(|| budget.effort.default_deadline(image.pixels().len()));
-    let mut log = PassLog::new(deadline);
+    let deadline = budget.deadline_for(image.pixels().len());
+    let mut log = PassLog::with_cancel(deadline, budget.cancel.clone());
     let candidates = find_logged(image, choice, budget.effort, &mut log)?;
     let codes = candidates
         .into_iter()

@@ -6,6 +6,10 @@
 //! A code whose pose cannot be solved is still returned, with a typed [`MarkerError`] in
 //! place of the pose; it does not fail the other codes.
 //!
+//! Each code is solved once, at its own size: the caller's [`MarkerSizes`] gives the size of
+//! a code from its payload (one [`Marker`] for every code, or a site's rules), and a code it
+//! cannot size keeps its corners with [`MarkerError::UnknownSize`].
+//!
 //! The detector knows no camera, so it refines corners along straight sides. When the
 //! setup's camera distorts, every code is refined again through its lens
 //! ([`refine_corners_through`]; a fisheye bows the sides by pixels, issue 14); without
@@ -21,20 +25,40 @@ use qrpose_core::estimate::{
 };
 use qrpose_core::geometry::{
     camera::Camera,
+    frames::{MarkerPoint, PixelPoint},
     marker::{CornerOrder, Marker},
     quad::{ImageQuad, QuadError},
 };
 use std::time::Instant;
 use thiserror::Error;
 
-/// What every code's pose is solved with: the camera of the photo, the printed code's size
+/// The size of each code, by its payload.
+pub trait MarkerSizes {
+    /// Where a size came from, reported with each code (`()` when there is one size).
+    type Source: Copy + std::fmt::Debug + PartialEq;
+
+    /// The printed code with `payload` (`None`: not decoded), and where its size came from;
+    /// `None` when its size is unknown.
+    fn marker_for(&self, payload: Option<&str>) -> Option<(Marker, Self::Source)>;
+}
+
+/// One size for every code.
+impl MarkerSizes for Marker {
+    type Source = ();
+
+    fn marker_for(&self, _payload: Option<&str>) -> Option<(Marker, ())> {
+        Some((*self, ()))
+    }
+}
+
+/// What every code's pose is solved with: the camera of the photo, the printed codes' sizes
 /// and the solver.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Setup {
+pub struct Setup<S = Marker> {
     /// The camera that took the photo (pixel units).
     pub camera: Camera,
-    /// The printed code; every code in the photo is taken to have this size.
-    pub marker: Marker,
+    /// The printed codes' sizes: a [`Marker`] when every code has the same one.
+    pub sizes: S,
     /// The solver, validated.
     pub solver: ValidSolver,
 }
@@ -52,7 +76,7 @@ pub enum Points {
 }
 
 /// How to look.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Options {
     /// Which detector backend(s).
     pub detector: DetectorChoice,
@@ -65,6 +89,10 @@ pub struct Options {
 /// Why one code has no pose.
 #[derive(Debug, Clone, Copy, PartialEq, Error)]
 pub enum MarkerError {
+    /// The caller's [`MarkerSizes`] has no size for the code's payload: it is located and
+    /// read, not solved.
+    #[error("no marker size for this code")]
+    UnknownSize,
     /// The code's four corners do not form a usable quadrilateral.
     #[error(transparent)]
     Corners(QuadError),
@@ -80,9 +108,12 @@ pub enum MarkerError {
 
 /// One code found in the photo.
 #[derive(Debug, Clone, PartialEq)]
-pub struct LocatedMarker {
+pub struct LocatedMarker<Src = ()> {
     /// The code as detected: payload, corners, refinement.
     pub code: DetectedCode,
+    /// The code's size and where it came from; `None` when unknown (the pose is then
+    /// [`MarkerError::UnknownSize`]).
+    pub marker: Option<(Marker, Src)>,
     /// The points the pose was solved from.
     pub points_used: Points,
     /// The pose, or why there is none.
@@ -93,9 +124,9 @@ pub struct LocatedMarker {
 
 /// Every code in the photo and the time each stage took.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Located {
+pub struct Located<Src = ()> {
     /// The codes, in the detector's order.
-    pub markers: Vec<LocatedMarker>,
+    pub markers: Vec<LocatedMarker<Src>>,
     /// Detection, reading and corner refinement, ms.
     pub detect_ms: f64,
     /// The detection passes that ran, in order.
@@ -106,16 +137,17 @@ pub struct Located {
     pub estimate_ms: f64,
 }
 
-/// Finds, reads and refines every QR code in `image` and solves each one's pose.
+/// Finds, reads and refines every QR code in `image` and solves each one's pose, once, at
+/// the size `setup.sizes` gives it.
 ///
 /// # Errors
 /// [`DetectError`] when the chosen detector is not in this build. Finding no code is not
 /// an error (no markers), and neither is a code without a pose (its own [`MarkerError`]).
-pub fn locate_markers(
+pub fn locate_markers<S: MarkerSizes>(
     image: &GrayImage,
-    setup: &Setup,
+    setup: &Setup<S>,
     options: &Options,
-) -> Result<Located, DetectError> {
+) -> Result<Located<S::Source>, DetectError> {
     let started = Instant::now();
     let detection = detect_within(image, options.detector, &options.budget)?;
     let (codes, log) = (detection.codes, detection.log);
@@ -126,9 +158,14 @@ pub fn locate_markers(
         .into_iter()
         .map(|code| {
             let solving = Instant::now();
-            let (points_used, pose) = solve(&code, setup, options.points);
+            let marker = setup.sizes.marker_for(code.candidate.text.as_deref());
+            let (points_used, pose) = match &marker {
+                Some((size, _)) => solve(&code, setup, size, options.points),
+                None => (Points::Corners, Err(MarkerError::UnknownSize)),
+            };
             LocatedMarker {
                 code,
+                marker,
                 points_used,
                 pose,
                 estimate_us: solving.elapsed().as_secs_f64() * 1e6,
@@ -170,29 +207,28 @@ fn refined_through_lens(
         .collect()
 }
 
-/// The pose of one code from the requested points (falling back to the corners when the
-/// finder corners are incomplete), and the points used. [`locate_markers`] calls it for each
-/// code; a caller that sizes codes by payload calls it again with the code's own marker.
-pub fn solve(
+/// The pose of one code of size `marker` from the requested points (falling back to the
+/// corners when the finder corners are incomplete), and the points used.
+fn solve<S>(
     code: &DetectedCode,
-    setup: &Setup,
+    setup: &Setup<S>,
+    marker: &Marker,
     points: Points,
 ) -> (Points, Result<PoseEstimate, MarkerError>) {
     let r = &code.refinement;
     if let (Points::Finders, Some(image), Some(n)) = (points, r.finder_corners_px, r.module_count) {
-        let model = finder_marker_points(&setup.marker, n);
-        let pose =
-            estimate_planar_points(&model, &image, &setup.camera, &setup.marker, &setup.solver)
-                .map_err(|source| MarkerError::Estimate {
-                    points: Points::Finders,
-                    source,
-                });
+        let model = finder_marker_points(marker, n);
+        let pose = estimate_planar_points(&model, &image, &setup.camera, marker, &setup.solver)
+            .map_err(|source| MarkerError::Estimate {
+                points: Points::Finders,
+                source,
+            });
         return (Points::Finders, pose);
     }
     let pose = ImageQuad::try_new(*code.corners_px(), CornerOrder::Qr)
         .map_err(MarkerError::Corners)
         .and_then(|quad| {
-            estimate_pose(&quad, &setup.camera, &setup.marker, &setup.solver).map_err(|source| {
+            estimate_pose(&quad, &setup.camera, marker, &setup.solver).map_err(|source| {
                 MarkerError::Estimate {
                     points: Points::Corners,
                     source,
@@ -200,6 +236,28 @@ pub fn solve(
             })
         });
     (Points::Corners, pose)
+}
+
+/// The model points and the measured image points of `located`'s pose: the twelve finder
+/// corners or the four corners (in the paper's order P1..P4), as [`Points`] says; `None`
+/// when the code was not solved from them (no size, or corners that are not a quadrilateral).
+#[must_use]
+pub fn observed_points<Src>(
+    located: &LocatedMarker<Src>,
+) -> Option<(Vec<MarkerPoint>, Vec<PixelPoint>)> {
+    let (marker, _) = located.marker.as_ref()?;
+    let r = &located.code.refinement;
+    match located.points_used {
+        Points::Finders => {
+            let image = r.finder_corners_px?;
+            let model = finder_marker_points(marker, r.module_count?);
+            Some((model, image.to_vec()))
+        }
+        Points::Corners => {
+            let quad = ImageQuad::try_new(*located.code.corners_px(), CornerOrder::Qr).ok()?;
+            Some((marker.object_points().to_vec(), quad.paper_order().to_vec()))
+        }
+    }
 }
 
 fn ms_since(t: Instant) -> f64 {

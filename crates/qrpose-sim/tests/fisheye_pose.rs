@@ -118,10 +118,7 @@ fn errors(
 
 fn options() -> Options {
     Options {
-        budget: Budget {
-            effort: Effort::Balanced,
-            max_detect: Some(DETECT_DEADLINE),
-        },
+        budget: Budget::new(Effort::Balanced, Some(DETECT_DEADLINE)),
         ..Options::default()
     }
 }
@@ -133,7 +130,7 @@ fn photo_errors(camera: Camera, i: usize) -> PhotoErrors {
     let rendered = render(&scene, &Effects::default()).expect("renders");
     let setup = Setup {
         camera,
-        marker: marker(),
+        sizes: marker(),
         solver: ValidSolver::default(),
     };
     let located = locate_markers(&rendered.image, &setup, &options()).expect("detector built");
@@ -216,7 +213,7 @@ fn a_camera_without_distortion_keeps_the_corners_of_the_detector_without_a_camer
             );
             let setup = Setup {
                 camera,
-                marker: marker(),
+                sizes: marker(),
                 solver: ValidSolver::default(),
             };
             let located =

@@ -11,14 +11,14 @@ use qrpose_sim::render::{EcLevel, Effects, Rendered, Scene, render};
 const POSITION_TOL_MM: f64 = 1.0;
 
 fn photo(setup: &Setup) -> Rendered {
-    let pose = setup.marker.pose_centred_at(
+    let pose = setup.sizes.pose_centred_at(
         EulerXyz::from_degrees(15.0, -20.0, 10.0).to_rotation(),
         Vector3::new(10.0, -5.0, 300.0),
     );
     let scene = Scene {
         payload: b"PIPE-1".to_vec(),
         ec_level: EcLevel::M,
-        marker: setup.marker,
+        marker: setup.sizes,
         camera: setup.camera,
         width_px: 640,
         height_px: 480,
@@ -30,7 +30,7 @@ fn photo(setup: &Setup) -> Rendered {
 fn setup(method: Method) -> Setup {
     Setup {
         camera: Camera::from_pixels(900.0, 900.0, 319.5, 239.5).expect("valid camera"),
-        marker: Marker::try_new(40.0).expect("valid size"),
+        sizes: Marker::try_new(40.0).expect("valid size"),
         solver: ValidSolver::default_for(method),
     }
 }

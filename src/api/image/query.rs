@@ -10,7 +10,10 @@
 use super::{DetectorDto, EffortDto, ImageRequest, PointsDto};
 use crate::api::problem::Problem;
 use crate::api::request::{CameraDto, DistortionDto, MarkerDto, MethodDto, SolverDto};
+use crate::app::{ImageLimits, ImageSetup};
+use qrpose_site::Site;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 use utoipa::IntoParams;
 
 /// The image request as flat parameters (query string or command-line flags). Numeric flags
@@ -22,12 +25,15 @@ use utoipa::IntoParams;
 pub struct ImageQuery {
     /// A camera of the loaded site (`qrpose serve --site`), instead of the intrinsics and
     /// distortion.
+    #[param(min_length = 1)]
     #[arg(long)]
     pub camera_id: Option<String>,
     /// Horizontal focal length, px.
+    #[param(exclusive_minimum = 0)]
     #[arg(long, allow_negative_numbers = true)]
     pub fx_px: Option<f64>,
     /// Vertical focal length, px.
+    #[param(exclusive_minimum = 0)]
     #[arg(long, allow_negative_numbers = true)]
     pub fy_px: Option<f64>,
     /// Principal point, horizontal, px (integer = pixel centre).
@@ -37,9 +43,11 @@ pub struct ImageQuery {
     #[arg(long, allow_negative_numbers = true)]
     pub cy_px: Option<f64>,
     /// Lens focal length, mm (sensor form, with `pixel_size_um`).
+    #[param(exclusive_minimum = 0)]
     #[arg(long, allow_negative_numbers = true)]
     pub focal_length_mm: Option<f64>,
     /// Pixel pitch, µm (sensor form).
+    #[param(exclusive_minimum = 0)]
     #[arg(long, allow_negative_numbers = true)]
     pub pixel_size_um: Option<f64>,
     /// Radial distortion r² coefficient (OpenCV's k1).
@@ -59,6 +67,7 @@ pub struct ImageQuery {
     pub p2: Option<f64>,
     /// Side of the QR symbol, mm (finder edge to finder edge, quiet zone excluded). Required
     /// unless a site is loaded: then each code is sized by its payload.
+    #[param(exclusive_minimum = 0)]
     #[arg(long, allow_negative_numbers = true)]
     pub marker_size_mm: Option<f64>,
     /// Solver: `paper`, `depth-newton` or `reprojection` (default).
@@ -71,27 +80,33 @@ pub struct ImageQuery {
     #[arg(long, value_enum)]
     pub points: Option<PointsDto>,
     /// Starting depth, mm (`paper`, `depth-newton`).
+    #[param(exclusive_minimum = 0, maximum = 1e7)]
     #[arg(long, allow_negative_numbers = true)]
     pub initial_z_mm: Option<f64>,
     /// Gain k of the paper's Eq. 12 (`paper`).
+    #[param(exclusive_minimum = 0, maximum = 10)]
     #[arg(long, allow_negative_numbers = true)]
     pub gain: Option<f64>,
     /// Convergence threshold, mm (`paper`).
+    #[param(exclusive_minimum = 0, maximum = 1e6)]
     #[arg(long, allow_negative_numbers = true)]
     pub tolerance_mm: Option<f64>,
     /// Iteration limit, 1 to 10000.
+    #[param(minimum = 1, maximum = 10000)]
     #[arg(long, allow_negative_numbers = true)]
     pub max_iterations: Option<u64>,
     /// Return the per-iteration trace.
     #[arg(long)]
     pub trace: Option<bool>,
     /// Corner noise σ for the covariance, px.
+    #[param(exclusive_minimum = 0, maximum = 100)]
     #[arg(long, allow_negative_numbers = true)]
     pub corner_sigma_px: Option<f64>,
     /// Detection effort: `fast`, `balanced` (default) or `thorough`.
     #[arg(long, value_enum)]
     pub effort: Option<EffortDto>,
     /// Detection deadline, ms (> 0; default the effort's own, capped by the server).
+    #[param(exclusive_minimum = 0)]
     #[arg(long, allow_negative_numbers = true)]
     pub max_detect_ms: Option<f64>,
 }
@@ -154,6 +169,37 @@ impl ImageQuery {
             max_detect_ms: self.max_detect_ms,
             prior: None,
         })
+    }
+
+    /// Validates the request these parameters stand for ([`ImageRequest::setup`]); a
+    /// problem's `field` names the parameter.
+    ///
+    /// # Errors
+    /// As [`ImageRequest::setup`].
+    pub fn setup(
+        self,
+        limits: &ImageLimits,
+        site: Option<Arc<Site>>,
+    ) -> Result<ImageSetup, Problem> {
+        self.into_request()
+            .and_then(|request| request.setup(limits, site))
+            .map_err(Self::problem_in_query_terms)
+    }
+
+    /// The JSON pointer in [`ImageRequest`] of the value that parameter `name` gives
+    /// (`fx_px` → `/camera/fx_px`); the inverse of [`Self::parameter_of_pointer`].
+    pub fn pointer_of_parameter(name: &str) -> String {
+        match name {
+            CAMERA_ID_PARAMETER => CAMERA_ID_POINTER.to_owned(),
+            MARKER_SIZE_PARAMETER => MARKER_SIZE_POINTER.to_owned(),
+            "fx_px" | "fy_px" | "cx_px" | "cy_px" | "focal_length_mm" | "pixel_size_um" => {
+                format!("/camera/{name}")
+            }
+            "k1" | "k2" | "k3" | "p1" | "p2" => format!("/camera/distortion/{name}"),
+            "method" | "initial_z_mm" | "gain" | "tolerance_mm" | "max_iterations" | "trace"
+            | "corner_sigma_px" => format!("/solver/{name}"),
+            _ => format!("/{name}"),
+        }
     }
 
     /// The names of the parameters, as documented (utoipa's `IntoParams`).
@@ -270,6 +316,18 @@ mod tests {
         let mut expected = names.clone();
         expected.sort();
         assert_eq!(mapped, expected, "each request value has its parameter");
+    }
+
+    #[test]
+    fn every_parameter_has_its_pointer_and_back() {
+        for name in ImageQuery::parameter_names() {
+            let pointer = ImageQuery::pointer_of_parameter(&name);
+            assert_eq!(
+                ImageQuery::parameter_of_pointer(&pointer).as_deref(),
+                Some(name.as_str()),
+                "{name} -> {pointer}"
+            );
+        }
     }
 
     #[test]

@@ -2,16 +2,18 @@
 //! refinement and pose, and the time per stage.
 
 use super::PointsDto;
-use super::per_marker::{MarkerContext, MarkerPose, marker_pose};
-use crate::api::frames::{LocalizationDto, localization};
+use crate::api::frames::{FramePoseDto, LocalizationDto};
 use crate::api::problem::Problem;
+use crate::api::refusal::problem_from_marker_error;
 use crate::api::response::PoseResponse;
+use crate::app::{ImageAnswer, ImageSetup, MarkerAnswer};
 use crate::detect::{
     corners::RefineStatus,
-    pipeline::{Located, LocatedMarker},
+    pipeline::{MarkerError, Points},
 };
-use crate::geometry::frames::PixelPoint;
+use crate::geometry::{camera::Camera, frames::PixelPoint};
 use base64::Engine;
+use qrpose_site::Site;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
@@ -119,10 +121,12 @@ fn pairs<const K: usize>(points: &[PixelPoint; K]) -> [[f64; 2]; K] {
 }
 
 impl MarkerResultDto {
-    /// The wire form of a code of a photo and its pose.
-    pub fn new(located: &LocatedMarker, solved: MarkerPose) -> Self {
-        let code = &located.code;
+    /// The wire form of code `index` of a photo and its pose (`site`: the loaded site, for
+    /// the problem of a code it cannot size).
+    pub fn new(m: &MarkerAnswer, index: usize, camera: &Camera, site: Option<&Site>) -> Self {
+        let code = &m.code;
         let c = &code.candidate;
+        let (pose, problem) = marker_pose_or_problem(m, index, camera, site);
         Self {
             payload: c.text.clone(),
             payload_base64: c
@@ -139,52 +143,84 @@ impl MarkerResultDto {
                 .map(|f| pairs(f).to_vec()),
             module_count: code.refinement.module_count,
             detector: c.backend.as_str().to_owned(),
-            points_used: solved.points_used.into(),
-            pose: solved.pose,
-            problem: solved.problem,
+            points_used: m.points_used.into(),
+            pose,
+            problem,
         }
     }
 }
 
+/// The `pose` and `problem` of code `index`: the wire pose with what the site adds when it
+/// was solved and every number of it is finite; otherwise `pose: null` and the code's own
+/// problem (why it has no pose, or 422 `numerically_degenerate` naming its corners).
+fn marker_pose_or_problem(
+    m: &MarkerAnswer,
+    index: usize,
+    camera: &Camera,
+    site: Option<&Site>,
+) -> (Option<PoseResponse>, Option<Problem>) {
+    let payload = m.code.candidate.text.as_deref();
+    let (estimate, (marker, source)) = match (&m.pose, &m.marker) {
+        (Ok(estimate), Some(sized)) => (estimate, sized),
+        (Err(e), _) => {
+            return (
+                None,
+                Some(problem_from_marker_error(*e, index, site, payload)),
+            );
+        }
+        (Ok(_), None) => {
+            let e = MarkerError::UnknownSize;
+            return (
+                None,
+                Some(problem_from_marker_error(e, index, site, payload)),
+            );
+        }
+    };
+    let list = match m.points_used {
+        Points::Corners => "corners_px",
+        Points::Finders => "finder_corners_px",
+    };
+    let pointer = format!("/markers/{index}/{list}");
+    let frames = (
+        m.frames.in_robot.as_ref().map(FramePoseDto::from),
+        m.frames.in_world.as_ref().map(FramePoseDto::from),
+    );
+    let pose = PoseResponse::try_new(estimate, camera, marker, m.estimate_us, &pointer)
+        .and_then(|pose| pose.with_site((*source).into(), frames, m.resolved_by_prior, &pointer));
+    match pose {
+        Ok(pose) => (Some(pose), None),
+        Err(problem) => (None, Some(problem)),
+    }
+}
+
 impl ImageResponse {
-    /// The wire form of what [`locate_markers`](crate::detect::pipeline::locate_markers)
-    /// found in an image of `image` size, decoded in `decode_ms`: each code sized, solved
-    /// and carried into the site's frames by `context`, and the fused localisation.
-    pub fn new(
-        located: &Located,
-        context: &MarkerContext<'_>,
-        image: ImageSizeDto,
-        decode_ms: f64,
-    ) -> Self {
-        let mut mapped = Vec::new();
-        let markers = located
+    /// The wire form of the application's answer for a photo, validated as `setup`.
+    pub fn from_answer(answer: &ImageAnswer, setup: &ImageSetup) -> Self {
+        let site = setup.pose.site.as_deref();
+        let markers = answer
             .markers
             .iter()
             .enumerate()
-            .map(|(index, m)| {
-                let solved = marker_pose(m, index, context);
-                if let (Some(in_world), Some(payload)) =
-                    (solved.robot_in_world, &m.code.candidate.text)
-                {
-                    mapped.push((index, payload.clone(), in_world));
-                }
-                MarkerResultDto::new(m, solved)
-            })
+            .map(|(index, m)| MarkerResultDto::new(m, index, &setup.pose.camera, site))
             .collect();
         Self {
-            image,
+            image: ImageSizeDto {
+                width_px: answer.width_px,
+                height_px: answer.height_px,
+            },
             markers,
-            localization: localization(&mapped),
-            warnings: if located.budget_exhausted {
+            localization: answer.localization.as_ref().map(LocalizationDto::from),
+            warnings: if answer.budget_exhausted {
                 vec![ImageWarningDto::DetectionBudgetExhausted]
             } else {
                 Vec::new()
             },
             timing_ms: TimingDto {
-                decode: decode_ms,
-                detect: located.detect_ms,
-                estimate: located.estimate_ms,
-                detect_passes: located
+                decode: answer.timing.decode_ms,
+                detect: answer.timing.detect_ms,
+                estimate: answer.timing.estimate_ms,
+                detect_passes: answer
+                    .timing
                     .passes
                     .iter()
                     .map(|p| PassDto {
@@ -195,5 +231,99 @@ impl ImageResponse {
                     .collect(),
             },
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::api::problem::ErrorCode;
+    use crate::app::InFrames;
+    use crate::detect::corners::Refinement;
+    use crate::detect::{Backend, Candidate, DetectedCode};
+    use crate::estimate::{PoseEstimate, ValidSolver, estimate_pose};
+    use crate::geometry::{
+        marker::{CornerOrder, Marker},
+        quad::ImageQuad,
+    };
+    use qrpose_site::SizeSource;
+
+    fn answer(pose: Result<PoseEstimate, MarkerError>, points_used: Points) -> MarkerAnswer {
+        let corners = [
+            (589.2, 309.8),
+            (689.9, 311.4),
+            (688.1, 411.6),
+            (588.0, 409.5),
+        ]
+        .map(|(u, v)| PixelPoint::new(u, v));
+        MarkerAnswer {
+            code: DetectedCode {
+                candidate: Candidate {
+                    corners_px: corners,
+                    payload: Some(b"SKU-1".to_vec()),
+                    text: Some("SKU-1".to_owned()),
+                    module_count: Some(21),
+                    backend: Backend::Rxing,
+                },
+                refinement: Refinement {
+                    corners_px: corners,
+                    finder_corners_px: None,
+                    module_count: Some(21),
+                    status: RefineStatus::Refined,
+                    observations: 0,
+                },
+            },
+            marker: Some((Marker::try_new(50.0).expect("marker"), SizeSource::Request)),
+            points_used,
+            pose,
+            resolved_by_prior: false,
+            frames: InFrames::default(),
+            estimate_us: 1.0,
+        }
+    }
+
+    #[test]
+    fn a_marker_pose_with_a_non_finite_number_is_null_with_its_problem() {
+        let camera = Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("camera");
+        let marker = Marker::try_new(50.0).expect("marker");
+        let good = answer(Err(MarkerError::UnknownSize), Points::Corners);
+        let quad = ImageQuad::try_new(*good.code.corners_px(), CornerOrder::Qr).expect("quad");
+        let estimate =
+            estimate_pose(&quad, &camera, &marker, &ValidSolver::default()).expect("a pose");
+        let good = answer(Ok(estimate.clone()), Points::Corners);
+        let (pose, problem) = marker_pose_or_problem(&good, 0, &camera, None);
+        assert!(pose.is_some() && problem.is_none());
+
+        let mut spoiled_estimate = estimate;
+        spoiled_estimate.centre_mm.z = f64::NAN;
+        let spoiled = answer(Ok(spoiled_estimate), Points::Finders);
+        let (pose, problem) = marker_pose_or_problem(&spoiled, 3, &camera, None);
+        assert!(pose.is_none());
+        let problem = problem.expect("a problem");
+        assert_eq!(problem.code, ErrorCode::NumericallyDegenerate);
+        assert_eq!(
+            problem.field.as_deref(),
+            Some("/markers/3/finder_corners_px")
+        );
+        assert!(
+            problem.detail.contains("/position_mm/z"),
+            "{}",
+            problem.detail
+        );
+    }
+
+    #[test]
+    fn a_code_without_a_size_is_null_with_unknown_marker_size_at_its_payload() {
+        let camera = Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("camera");
+        let unsized_code = MarkerAnswer {
+            marker: None,
+            ..answer(Err(MarkerError::UnknownSize), Points::Corners)
+        };
+        let (pose, problem) = marker_pose_or_problem(&unsized_code, 2, &camera, None);
+        assert!(pose.is_none());
+        let problem = problem.expect("a problem");
+        assert_eq!(problem.code, ErrorCode::UnknownMarkerSize);
+        assert_eq!(problem.field.as_deref(), Some("/markers/2/payload"));
+        assert!(problem.detail.contains("SKU-1"), "{}", problem.detail);
     }
 }

@@ -11,7 +11,8 @@
 //! capacity, whatever the clients do.
 //!
 //! A request that gives up while its job *runs* raises the job's cancellation flag
-//! ([`qrpose_detect::cancel`]): detection stops before its next pass, so the worker is free
+//! ([`qrpose_detect::cancel`]), which the job hands to detection in its budget
+//! ([`EstimationQueue::run_cancellable`]): detection stops before its next pass, so the worker is free
 //! within one pass (a few ms on the crops `auto` works on) rather than when every pass has
 //! run.
 //!
@@ -29,7 +30,7 @@
 
 use super::error::ApiError;
 use super::metrics::QueueMetrics;
-use crate::detect::cancel::{CancelFlag, run_cancellable};
+use crate::detect::cancel::CancelFlag;
 use crate::detect::contain::contain;
 use crossbeam_channel::{Receiver, Sender};
 use std::sync::Arc;
@@ -238,7 +239,7 @@ impl EstimationQueue {
     /// or when the queue is full; as [`Self::run`] otherwise.
     pub async fn run_image<T, F>(&self, pixels: u64, job: F) -> Result<T, ApiError>
     where
-        F: FnOnce() -> T + Send + 'static,
+        F: FnOnce(CancelFlag) -> T + Send + 'static,
         T: Send + 'static,
     {
         let Some(permit) = AmountBudget::try_take(&self.inner.pixel_budget, pixels) else {
@@ -253,9 +254,9 @@ impl EstimationQueue {
                 self.inner.pixel_budget.capacity,
             ));
         };
-        self.run(move || {
+        self.run_cancellable(move |cancel| {
             let _permit = permit;
-            job()
+            job(cancel)
         })
         .await
     }
@@ -270,6 +271,20 @@ impl EstimationQueue {
         F: FnOnce() -> T + Send + 'static,
         T: Send + 'static,
     {
+        self.run_cancellable(move |_| job()).await
+    }
+
+    /// [`Self::run`] for a job given the flag that is raised when its request gives up
+    /// while it runs (a timeout, a closed connection): the job puts it into its detection
+    /// budget, and detection stops before its next pass.
+    ///
+    /// # Errors
+    /// As [`Self::run`].
+    pub async fn run_cancellable<T, F>(&self, job: F) -> Result<T, ApiError>
+    where
+        F: FnOnce(CancelFlag) -> T + Send + 'static,
+        T: Send + 'static,
+    {
         let mut place = self.try_take_place()?;
         let (reply, result) = oneshot::channel();
         let span = tracing::Span::current();
@@ -281,7 +296,7 @@ impl EstimationQueue {
                 return;
             }
             place.start();
-            let outcome = contain(|| run_cancellable(&flag, || span.in_scope(job)));
+            let outcome = contain(|| span.in_scope(|| job(flag)));
             // Free the place before answering, so that the next request finds it free.
             drop(place);
             // The receiver may be gone (timed out meanwhile); the result is then unused.

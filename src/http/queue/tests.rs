@@ -101,11 +101,11 @@ async fn a_request_that_gives_up_while_its_job_runs_cancels_the_detection() {
     let queue = EstimationQueue::new(1, 0, QueueMetrics::default()).expect("threads");
     let (seen, saw) = mpsc::channel::<Duration>();
     let (running, has_run) = tokio::sync::oneshot::channel::<std::time::Instant>();
-    let job = move || {
+    let job = move |cancel: crate::detect::cancel::CancelFlag| {
         let started = std::time::Instant::now();
         let _ = running.send(started);
         // Stands for detection: a pass, then the check before the next one.
-        while !crate::detect::cancel::cancelled() {
+        while !cancel.is_cancelled() {
             std::thread::sleep(Duration::from_millis(1));
             assert!(started.elapsed() < PATIENCE, "never cancelled");
         }
@@ -113,7 +113,7 @@ async fn a_request_that_gives_up_while_its_job_runs_cancels_the_detection() {
     };
     // Boxed, so that the timeout below takes it and drops it (the cancellation) when it
     // gives up.
-    let mut run = Box::pin(queue.run(job));
+    let mut run = Box::pin(queue.run_cancellable(job));
     // Give up only once the job runs (on a loaded machine a worker may take a while to
     // pick it up, and a job given up before it starts is dropped unrun, another case).
     let started = tokio::select! {
@@ -140,18 +140,18 @@ async fn image_jobs_beyond_the_pixel_budget_are_refused_at_once() {
     let (open, big) = gate();
     let running = tokio::spawn({
         let queue = queue.clone();
-        async move { queue.run_image(700, big).await }
+        async move { queue.run_image(700, |_| big()).await }
     });
     until("one running", &queue, (1, 0)).await;
     let refused = queue
-        .run_image(400, || ())
+        .run_image(400, |_| ())
         .await
         .expect_err("700 + 400 > 1000");
     assert_eq!(refused.code(), ErrorCode::Overloaded);
     assert!(refused.problem().detail.contains("max-inflight-pixels"));
-    assert_eq!(queue.run_image(300, || 1).await.expect("700 + 300 fit"), 1);
+    assert_eq!(queue.run_image(300, |_| 1).await.expect("700 + 300 fit"), 1);
     assert_eq!(
-        queue.run_image(5_000, || 2).await.ok(),
+        queue.run_image(5_000, |_| 2).await.ok(),
         None,
         "still 700 held"
     );
@@ -159,7 +159,7 @@ async fn image_jobs_beyond_the_pixel_budget_are_refused_at_once() {
     running.await.expect("task").expect("big job");
     assert_eq!(
         queue
-            .run_image(5_000, || 2)
+            .run_image(5_000, |_| 2)
             .await
             .expect("alone, a job over the budget runs"),
         2

@@ -8,23 +8,20 @@
 //! so it weighs twice the plain endpoint's pixels.
 
 use crate::annotate::{CodecError, OutputFormat, annotated_image};
-use crate::api::image::{ImageLimits, ImageQuery, ImageResponse};
+use crate::api::image::{ImageQuery, ImageResponse, respond};
 use crate::api::problem::{ErrorCode, Problem};
-use crate::detect::decode::DecodeLimits;
+use crate::app::ImageLimits;
+use crate::detect::cancel::CancelFlag;
 use crate::http::{
-    error::ApiError,
-    image_input::{ImageInput, MULTIPART},
-    metrics::PoseOutcome,
-    routes::image::{self, ImageForm, estimate_with_camera_in},
-    state::AppState,
+    error::ApiError, image_input::ImageInput, metrics::PoseOutcome, negotiate::negotiate_format,
+    routes::image::ImageForm, state::AppState,
 };
 use axum::extract::State;
 use axum::http::{HeaderMap, HeaderName, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use base64::Engine;
 use qrpose_site::Site;
-use std::collections::BTreeMap;
-use utoipa::openapi::{OpenApi, RefOr, encoding::Encoding};
+use std::sync::Arc;
 
 /// The route.
 pub const PATH: &str = "/v1/pose/image/annotated";
@@ -41,51 +38,6 @@ pub const MARKERS_HEADER: &str = "x-qrpose-markers";
 /// raise its `proxy_buffer_size` to 32k in front of this route).
 pub const MAX_RESULT_HEADER_BYTES: usize = 16 * 1024;
 
-/// The encoding an `Accept` header asks for: PNG when it prefers `image/png` to
-/// `image/jpeg` (by q-value, the most specific matching range deciding each); JPEG
-/// otherwise, including when it names neither (the route then answers as if no `Accept`
-/// was sent, RFC 9110 §12.5.1, rather than 406).
-pub fn negotiate_format(accept: Option<&HeaderValue>) -> OutputFormat {
-    let Some(accept) = accept.and_then(|v| v.to_str().ok()) else {
-        return OutputFormat::Jpeg;
-    };
-    let quality = |media_type: &str| quality_of(accept, media_type);
-    if quality("image/png") > quality("image/jpeg") {
-        OutputFormat::Png
-    } else {
-        OutputFormat::Jpeg
-    }
-}
-
-/// The q-value `accept` gives `media_type` (`type/subtype`, lower case): that of the most
-/// specific range matching it (exact, then `type/*`, then `*/*`), 0 when none does.
-fn quality_of(accept: &str, media_type: &str) -> f64 {
-    let main_type = media_type.split('/').next().unwrap_or_default();
-    let mut best: Option<(u8, f64)> = None;
-    for range in accept.split(',') {
-        let mut parts = range.split(';');
-        let name = parts.next().unwrap_or_default().trim().to_ascii_lowercase();
-        let specificity = if name == media_type {
-            3
-        } else if name.strip_suffix("/*") == Some(main_type) {
-            2
-        } else if name == "*/*" {
-            1
-        } else {
-            continue;
-        };
-        let q = parts
-            .filter_map(|p| p.trim().strip_prefix("q="))
-            .find_map(|q| q.trim().parse::<f64>().ok())
-            .filter(|q| (0.0..=1.0).contains(q))
-            .unwrap_or(1.0);
-        if best.is_none_or(|(s, _)| specificity > s) {
-            best = Some((specificity, q));
-        }
-    }
-    best.map_or(0.0, |(_, q)| q)
-}
-
 /// The result headers: the JSON when it fits, else its encoded size; and the marker count.
 fn result_headers(json: &[u8], markers: usize) -> Result<HeaderMap, ApiError> {
     let encoded = base64::engine::general_purpose::URL_SAFE_NO_PAD.encode(json);
@@ -99,37 +51,6 @@ fn result_headers(json: &[u8], markers: usize) -> Result<HeaderMap, ApiError> {
     headers.insert(HeaderName::from_static(name), value);
     headers.insert(HeaderName::from_static(MARKERS_HEADER), markers.into());
     Ok(headers)
-}
-
-/// Gives the multipart form of this route the part media types of `POST /v1/pose/image`'s
-/// (call after [`super::image::document_part_media_types`]): the two take the same parts.
-pub fn document_part_media_types(doc: &mut OpenApi) {
-    let Some(encoding) = multipart_encoding(doc, image::PATH).map(|e| e.clone()) else {
-        return;
-    };
-    if let Some(target) = multipart_encoding(doc, PATH) {
-        *target = encoding;
-    }
-}
-
-/// The part media types of the multipart request body of `POST path`, if documented.
-fn multipart_encoding<'a>(
-    doc: &'a mut OpenApi,
-    path: &str,
-) -> Option<&'a mut BTreeMap<String, Encoding>> {
-    let body = doc
-        .paths
-        .paths
-        .get_mut(path)?
-        .post
-        .as_mut()?
-        .request_body
-        .as_mut()?;
-    let RefOr::T(body) = body else { return None };
-    match body.content.get_mut(MULTIPART)? {
-        RefOr::T(content) => Some(&mut content.encoding),
-        RefOr::Ref(_) => None,
-    }
 }
 
 /// What the handler gets back from the worker.
@@ -152,16 +73,19 @@ fn refusal_of(err: &CodecError) -> ApiError {
     }
 }
 
-/// Estimates, draws and encodes, on the estimation worker.
+/// Validates, estimates, draws and encodes, on the estimation worker.
 fn annotate_job(
     input: &ImageInput,
     limits: &ImageLimits,
-    site: Option<&Site>,
+    site: Option<Arc<Site>>,
     format: OutputFormat,
+    cancel: CancelFlag,
 ) -> Result<Annotated, ApiError> {
-    let (response, camera) = estimate_with_camera_in(input, limits, site)?;
+    let setup = input.setup(limits, site)?;
+    let response = respond(&setup, input.image(), cancel)?;
+    let camera = &setup.pose.camera;
     let image =
-        annotated_image(input.image(), &response, &camera, format).map_err(|e| refusal_of(&e))?;
+        annotated_image(input.image(), &response, camera, format).map_err(|e| refusal_of(&e))?;
     let json = serde_json::to_vec(&response).map_err(ApiError::internal)?;
     Ok(Annotated {
         image,
@@ -241,13 +165,7 @@ pub async fn pose_from_image_annotated(
     input: ImageInput,
 ) -> Result<Response, ApiError> {
     let format = negotiate_format(request_headers.get(header::ACCEPT));
-    let limits = ImageLimits {
-        decode: DecodeLimits {
-            max_encoded_bytes: state.settings.body_limit_bytes,
-            max_pixels: state.settings.max_image_pixels,
-        },
-        max_detect_ms: state.settings.max_detect.as_secs_f64() * 1e3,
-    };
+    let limits = state.image_limits();
     // Twice the plain route's weight (the frame is held in colour too), but never more than
     // the largest image, which the pixel budget always admits.
     let plain_pixels = input.admission_pixels(limits.decode.max_pixels);
@@ -258,8 +176,8 @@ pub async fn pose_from_image_annotated(
     let site = state.site.current();
     let annotated = state
         .queue
-        .run_image(pixels, move || {
-            annotate_job(&input, &limits, site.as_deref(), format)
+        .run_image(pixels, move |cancel| {
+            annotate_job(&input, &limits, site, format, cancel)
         })
         .await??;
     let markers = &annotated.response.markers;
@@ -282,31 +200,6 @@ pub async fn pose_from_image_annotated(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn format_for(accept: &str) -> OutputFormat {
-        negotiate_format(Some(
-            &HeaderValue::from_str(accept).expect("a header value"),
-        ))
-    }
-
-    #[test]
-    fn accept_chooses_png_only_when_it_prefers_png() {
-        assert_eq!(negotiate_format(None), OutputFormat::Jpeg);
-        for (accept, expected) in [
-            ("image/png", OutputFormat::Png),
-            ("IMAGE/PNG", OutputFormat::Png),
-            ("image/png, image/jpeg", OutputFormat::Jpeg),
-            ("image/jpeg;q=0.5, image/png", OutputFormat::Png),
-            ("image/*;q=0.2, image/png;q=0.9", OutputFormat::Png),
-            ("image/png;q=0.4, image/*", OutputFormat::Jpeg),
-            ("image/png, */*;q=0.1", OutputFormat::Png),
-            ("*/*", OutputFormat::Jpeg),
-            ("application/json", OutputFormat::Jpeg),
-            ("image/png;q=nonsense", OutputFormat::Png),
-        ] {
-            assert_eq!(format_for(accept), expected, "Accept: {accept}");
-        }
-    }
 
     #[test]
     fn a_result_too_long_for_a_header_is_left_out_with_its_size() {

@@ -1,20 +1,21 @@
 //! `POST /v1/pose/corners`: the pose of one QR code from its four image corners.
 
 use crate::api::{
-    estimate_corners_in,
+    estimate_corners,
     problem::{Problem, parse_json},
     request::CornersRequest,
     response::PoseResponse,
 };
-use crate::detect::contain::contain;
 use crate::http::{
     error::ApiError,
     extract::{JsonBody, JsonBytes},
+    inline,
     metrics::PoseOutcome,
     state::AppState,
 };
 use axum::extract::State;
 use qrpose_site::Site;
+use std::sync::Arc;
 
 /// Estimate the pose of a QR code from its four corners.
 ///
@@ -84,14 +85,14 @@ pub async fn pose_from_corners(
 ) -> Result<JsonBytes, ApiError> {
     // One snapshot of the site for the whole request: a reload cannot change it midway.
     let site = state.site.current();
-    let (json, outcome) = match inline_request(&state, &body)? {
-        Some(request) => contained(|| estimate_to_json(&request, site.as_deref()))??,
+    let (json, outcome) = match inline::parsed_if_inline(&state.queue, &body)? {
+        Some(request) => inline::contained(|| answer_as_json(&request, site))??,
         None => {
             state
                 .queue
                 .run(move || {
                     let request = parse_json::<CornersRequest>(&body)?;
-                    estimate_to_json(&request, site.as_deref())
+                    answer_as_json(&request, site)
                 })
                 .await??
         }
@@ -100,52 +101,12 @@ pub async fn pose_from_corners(
     Ok(JsonBytes(json))
 }
 
-/// Bodies up to this size may be parsed on the async thread (a few µs); larger ones, which
-/// only padding or a long unknown field can make, are parsed on an estimation worker.
-pub const INLINE_MAX_BODY_BYTES: usize = 16 * 1024;
-
-/// Estimates with at most this many iterations and no trace may run on the async thread.
-/// Measured at the limit: 35 µs for `paper` running all 1000 iterations (`docs/service.md`,
-/// "Saturation").
-pub const INLINE_MAX_ITERATIONS: u64 = 1000;
-
-/// The request to estimate right here, on the async thread, instead of behind the
-/// estimation queue: only when the queue has no free place (so that corners requests are
-/// answered while image jobs fill every worker and waiting place) and the estimate is short
-/// ([`runs_inline`]). Otherwise `None`: the request goes to the queue, which on this 2-core
-/// machine costs less CPU per request than running inline (`docs/service.md`, "Load test":
-/// the workers keep the estimator's code and data in their caches, the async threads the
-/// network's).
-///
-/// # Errors
-/// The request's parse problem, when it was parsed here.
-fn inline_request(state: &AppState, body: &[u8]) -> Result<Option<CornersRequest>, ApiError> {
-    let o = state.queue.occupancy();
-    if o.running + o.waiting < o.capacity || body.len() > INLINE_MAX_BODY_BYTES {
-        return Ok(None);
-    }
-    let request = contained(|| parse_json::<CornersRequest>(body))??;
-    Ok(runs_inline(&request).then_some(request))
-}
-
-/// Whether a parsed request's estimate is short enough to run on an async thread: at most
-/// [`INLINE_MAX_ITERATIONS`] and no trace to serialise. Long ones (up to 10 000 iterations)
-/// always go to the workers, so that no request blocks an async thread for long.
-pub fn runs_inline(request: &CornersRequest) -> bool {
-    request.solver.max_iterations <= INLINE_MAX_ITERATIONS && !request.solver.trace
-}
-
-/// Runs `f` with panics contained: a panic is a 500 `internal` (logged), as on a worker.
-fn contained<T>(f: impl FnOnce() -> T) -> Result<T, ApiError> {
-    contain(f).map_err(|panic| ApiError::internal(format!("estimation panicked: {panic}")))
-}
-
-/// Estimates (against the loaded site, if any) and serialises.
-fn estimate_to_json(
+/// Validates, estimates (against the loaded site, if any) and serialises.
+fn answer_as_json(
     request: &CornersRequest,
-    site: Option<&Site>,
+    site: Option<Arc<Site>>,
 ) -> Result<(Vec<u8>, PoseOutcome), ApiError> {
-    let response = estimate_corners_in(request, site)?;
+    let response = estimate_corners(request, site)?;
     let json = serde_json::to_vec(&response).map_err(ApiError::internal)?;
     Ok((json, PoseOutcome::from(&response)))
 }

@@ -1,27 +1,22 @@
 //! `POST /v1/pose/image`: every QR code in a photo, with its payload, sub-pixel corners and
-//! pose. The body comes in either form through [`ImageInput`]; parsing the request part,
-//! decoding, detecting, estimating and serialising run on an estimation worker, as for
+//! pose. The body comes in either form through [`ImageInput`]; validating the request,
+//! [`crate::app::estimate_image`] and serialising run on an estimation worker, as for
 //! `/v1/pose/corners`.
 
 use crate::api::{
-    image::{
-        ImageLimits, ImageQuery, ImageRequest, ImageResponse, estimate_image_from_query_in,
-        estimate_image_in,
-    },
-    problem::{Problem, parse_json},
+    image::{ImageQuery, ImageRequest, ImageResponse, respond},
+    problem::Problem,
 };
-use crate::detect::decode::DecodeLimits;
+use crate::app::ImageLimits;
+use crate::detect::cancel::CancelFlag;
 use crate::http::{
-    error::ApiError,
-    extract::JsonBytes,
-    image_input::{IMAGE_PART, ImageInput, MULTIPART, REQUEST_PART},
-    metrics::PoseOutcome,
+    error::ApiError, extract::JsonBytes, image_input::ImageInput, metrics::PoseOutcome,
     state::AppState,
 };
 use axum::extract::State;
 use qrpose_site::Site;
+use std::sync::Arc;
 use utoipa::ToSchema;
-use utoipa::openapi::{OpenApi, RefOr, encoding::Encoding};
 
 /// The route.
 pub const PATH: &str = "/v1/pose/image";
@@ -33,37 +28,11 @@ pub const PATH: &str = "/v1/pose/image";
 pub struct ImageForm {
     /// The photo: JPEG or PNG bytes (the format is read from the bytes, whatever the part's
     /// content type says).
-    #[schema(value_type = String, content_media_type = "application/octet-stream")]
+    #[schema(value_type = String, content_media_type = "application/octet-stream", min_length = 1)]
     pub image: Vec<u8>,
     /// The request as JSON (`application/json`): camera, marker, optional solver,
     /// detector and points; the corners request without corners.
     pub request: ImageRequest,
-}
-
-/// Adds to `doc` the media type of each part of the multipart form (OpenAPI's `encoding`,
-/// which `#[utoipa::path]` cannot express).
-pub fn document_part_media_types(doc: &mut OpenApi) {
-    let content = doc
-        .paths
-        .paths
-        .get_mut(PATH)
-        .and_then(|item| item.post.as_mut())
-        .and_then(|operation| operation.request_body.as_mut())
-        .and_then(|body| match body {
-            RefOr::T(body) => body.content.get_mut(MULTIPART),
-            RefOr::Ref(_) => None,
-        });
-    if let Some(RefOr::T(content)) = content {
-        for (part, media_type) in [
-            (IMAGE_PART, "image/jpeg, image/png"),
-            (REQUEST_PART, "application/json"),
-        ] {
-            content.encoding.insert(
-                part.to_owned(),
-                Encoding::builder().content_type(Some(media_type)).build(),
-            );
-        }
-    }
 }
 
 /// Find every QR code in a photo and estimate its pose.
@@ -71,8 +40,12 @@ pub fn document_part_media_types(doc: &mut OpenApi) {
 /// Send the photo (JPEG or PNG) either as the raw body with the camera, marker and solver as
 /// query parameters, or as `multipart/form-data` with a part `image` (the photo) and a part
 /// `request` (JSON: `camera`, `marker`, optional `solver`, `detector` and `points`, as in
-/// the corners request). The query parameters apply to the raw form only; with multipart
-/// they are refused (422 `unknown_field`). Every code found is returned with its payload,
+/// the corners request). With a raw body the query must give the camera in one of its forms
+/// (`fx_px`, `fy_px`, `cx_px`, `cy_px`; or `focal_length_mm`, `pixel_size_um`, `cx_px`,
+/// `cy_px`; or, with a site loaded, `camera_id`) and, unless a site sizes the codes,
+/// `marker_size_mm`. With multipart, query parameters are read too: a field given in both is
+/// the part's (the camera is taken whole from the part when it has one, the solver field by
+/// field). Every code found is returned with its payload,
 /// its sub-pixel corners in `"qr"` order and its pose. No code found is a 200 with
 /// `markers: []`; a code whose pose cannot be computed has `pose: null` and its own
 /// `problem`. The same JSON as `qrpose estimate --image`.
@@ -144,20 +117,14 @@ pub async fn pose_from_image(
     State(state): State<AppState>,
     input: ImageInput,
 ) -> Result<JsonBytes, ApiError> {
-    let limits = ImageLimits {
-        decode: DecodeLimits {
-            max_encoded_bytes: state.settings.body_limit_bytes,
-            max_pixels: state.settings.max_image_pixels,
-        },
-        max_detect_ms: state.settings.max_detect.as_secs_f64() * 1e3,
-    };
+    let limits = state.image_limits();
     // One snapshot of the site for the whole request: a reload cannot change it midway.
     let site = state.site.current();
     let (json, outcome) = state
         .queue
         .run_image(
             input.admission_pixels(limits.decode.max_pixels),
-            move || estimate_to_json(input, &limits, site.as_deref()),
+            move |cancel| answer_as_json(&input, &limits, site, cancel),
         )
         .await??;
     state.metrics.observe_codes_detected(outcome.codes);
@@ -173,25 +140,16 @@ struct Outcome {
     poses: Vec<PoseOutcome>,
 }
 
-/// Parses the request part (multipart), decodes, detects, estimates (against the loaded
-/// site, if any) and serialises, all on the estimation worker.
-fn estimate_to_json(
-    input: ImageInput,
+/// Validates the request (parsing the multipart part), then decodes, detects, estimates and
+/// serialises, all on the estimation worker.
+fn answer_as_json(
+    input: &ImageInput,
     limits: &ImageLimits,
-    site: Option<&Site>,
+    site: Option<Arc<Site>>,
+    cancel: CancelFlag,
 ) -> Result<(Vec<u8>, Outcome), ApiError> {
-    let response: ImageResponse = match input {
-        ImageInput::Raw { image, query } => {
-            estimate_image_from_query_in(&image, *query, limits, site)?
-        }
-        ImageInput::Multipart {
-            image,
-            request_json,
-        } => {
-            let request = parse_json::<ImageRequest>(&request_json)?;
-            estimate_image_in(&image, &request, limits, site)?
-        }
-    };
+    let setup = input.setup(limits, site)?;
+    let response = respond(&setup, input.image(), cancel)?;
     let json = serde_json::to_vec(&response).map_err(ApiError::internal)?;
     let poses = response
         .markers
@@ -206,42 +164,4 @@ fn estimate_to_json(
             poses,
         },
     ))
-}
-
-/// The response of `input` and the camera its poses were computed with, for routes that
-/// draw the poses (`POST /v1/pose/image/annotated`), against `site` (the camera may be a
-/// site camera by id). The same request parsing, validation and problems as
-/// [`pose_from_image`]; runs on the estimation worker.
-///
-/// # Errors
-/// The problems of [`pose_from_image`] (a query's `field` names its parameter).
-pub fn estimate_with_camera_in(
-    input: &ImageInput,
-    limits: &ImageLimits,
-    site: Option<&Site>,
-) -> Result<(ImageResponse, crate::geometry::camera::Camera), ApiError> {
-    let (image, request, from_query) = match input {
-        ImageInput::Raw { image, query } => {
-            let request = ImageQuery::clone(query)
-                .into_request()
-                .map_err(ImageQuery::problem_in_query_terms)?;
-            (image, request, true)
-        }
-        ImageInput::Multipart {
-            image,
-            request_json,
-        } => (image, parse_json::<ImageRequest>(request_json)?, false),
-    };
-    let as_sent = |problem: Problem| {
-        if from_query {
-            ImageQuery::problem_in_query_terms(problem)
-        } else {
-            problem
-        }
-    };
-    let response = estimate_image_in(image, &request, limits, site).map_err(as_sent)?;
-    let (valid, _) = request
-        .validate_in(limits.max_detect_ms, site)
-        .map_err(as_sent)?;
-    Ok((response, valid.setup.camera))
 }

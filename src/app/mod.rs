@@ -1,0 +1,32 @@
+//! The application layer: what the service does, once, for every wire layer.
+//!
+//! The HTTP routes, the command line and the WebSocket stream all come through here. A wire
+//! layer validates its request into a [`Setup`] (the camera, how each code is sized, the
+//! solver, the prior: domain types, checked once by `api::`), then calls one operation:
+//!
+//! | operation | for |
+//! |---|---|
+//! | [`estimate_corners`] | `POST /v1/pose/corners`, `qrpose estimate REQUEST.json` |
+//! | [`estimate_image`] | `POST /v1/pose/image` (and `/annotated`), `qrpose estimate --image` |
+//!
+//! Each operation takes the loaded site, if any, inside its [`Setup`], and returns a domain
+//! answer that `api::` maps to JSON. Nothing here names HTTP, JSON or a query parameter:
+//! errors are the crates' own typed errors, and the one mapping to problem documents is
+//! `api::refusal`.
+//!
+//! Every code is solved once, at its own size: the detector asks the setup's
+//! [`SizeResolver`] for each code's size before it solves (see the core's
+//! `estimate::count`, which the tests read). Cancellation and the detection deadline travel
+//! in the detection budget ([`DetectSetup::budget`]).
+
+mod corners;
+mod frames;
+mod image;
+mod prior;
+mod setup;
+
+pub use corners::{CornersAnswer, CornersError, estimate_corners};
+pub use frames::{InFrames, Localization, SiteFrames};
+pub use image::{ImageAnswer, ImageError, MarkerAnswer, Timing, estimate_decoded, estimate_image};
+pub use prior::Prior;
+pub use setup::{DetectSetup, ImageLimits, ImageSetup, Setup, SizeResolver, Sizing};

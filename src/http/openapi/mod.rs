@@ -1,0 +1,161 @@
+//! The OpenAPI 3.1 document: one source with the routes (`OpenApiRouter` + `routes!`), so a
+//! route cannot exist without its documentation.
+//!
+//! The document says what the server accepts, exactly: ranges, defaults and required-ness
+//! come from the DTOs' own attributes; the request bodies whose valid forms are alternatives
+//! are written as unions of closed schemas ([`variants`], [`requests`]); the image routes'
+//! query parameters are flat and optional ([`query`]). Where the server's configuration
+//! changes what is valid ([`Served`]: a site loaded or not, the zxing-cpp detector built in
+//! or not), the served document says so.
+//!
+//! `openapi/openapi.json` in the repository is the document of a server without a site
+//! (`qrpose openapi`), and `openapi/openapi-site.json` that of a server with one (`qrpose
+//! openapi --site`), both for the default build; a test fails when either drifts.
+//!
+//! `GET /openapi.json` is served from here, rendered once per configuration: the document is
+//! made from the routes, so the route that serves it lives with it rather than among them.
+
+mod forms;
+mod query;
+mod requests;
+mod variants;
+
+pub use requests::Served;
+
+use super::error::ApiError;
+use super::routes::{annotated, corners, health, image, metrics, page, site};
+use super::state::AppState;
+use crate::detect::Backend;
+use axum::body::Bytes;
+use axum::extract::State;
+use axum::http::header;
+use axum::response::IntoResponse;
+use std::sync::OnceLock;
+use utoipa::OpenApi;
+use utoipa_axum::{router::OpenApiRouter, routes};
+
+/// Where the OpenAPI document is served.
+pub const OPENAPI_PATH: &str = "/openapi.json";
+
+/// The document of `served`, rendered on first use.
+fn rendered(served: Served) -> &'static Result<Bytes, String> {
+    static DOCUMENTS: [OnceLock<Result<Bytes, String>>; 4] = [const { OnceLock::new() }; 4];
+    let slot = usize::from(served.site) * 2 + usize::from(served.zxing_cpp);
+    DOCUMENTS[slot].get_or_init(|| {
+        openapi_json(served)
+            .map(Bytes::from)
+            .map_err(|e| e.to_string())
+    })
+}
+
+/// The commands that regenerate the committed documents.
+pub const REGENERATE: &str = "cargo run -- openapi > openapi/openapi.json && \
+    cargo run -- openapi --site > openapi/openapi-site.json";
+
+impl Served {
+    /// The configuration of the server `state` belongs to.
+    pub fn by(state: &AppState) -> Self {
+        Self {
+            site: state.site.path().is_some(),
+            zxing_cpp: Backend::ZxingCpp.is_built(),
+        }
+    }
+}
+
+/// Document-level information; the paths come from [`api_router`].
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "qrpose",
+        description = "Where a QR code is in 3D and how it is turned, from one image of one \
+camera.\n\nUnits: lengths in millimetres, image coordinates in pixels (u right, v down, \
+integer = pixel centre), angles in degrees. Camera frame: x right, y down, z forward (OpenCV). \
+Pose: p_cam = R·p_marker + t, with the marker frame's origin at corner P2 (the symbol's \
+top-right corner).\n\nEvery error is an RFC 9457 `application/problem+json` document with a \
+stable snake_case `code` and, when one field is at fault, `field` (a JSON pointer). Every \
+response carries `x-request-id` (the client's, when it sends a short token, else a fresh \
+UUID); log lines of the request carry the same id. Unknown routes answer 404 `not_found`, \
+known routes with another method 405 `method_not_allowed` (with `Allow`). The interactive \
+documentation is at `/docs`.",
+        license(name = "Apache-2.0", identifier = "Apache-2.0"),
+    ),
+    tags(
+        (name = "pose", description = "Pose estimation."),
+        (name = "operations", description = "Health, readiness, metrics and this document."),
+        (name = "site", description = "The loaded site: cameras, marker sizes, mounts, map (docs/site.md)."),
+        (name = "page", description = "The setup page for people (HTML)."),
+    )
+)]
+pub struct ApiDoc;
+
+/// Every documented route with its handler, before state is attached.
+pub fn api_router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .routes(routes!(corners::pose_from_corners))
+        .routes(routes!(image::pose_from_image))
+        .routes(routes!(annotated::pose_from_image_annotated))
+        .routes(routes!(page::setup_page))
+        .routes(routes!(health::healthz))
+        .routes(routes!(health::readyz))
+        .routes(routes!(site::site))
+        .routes(routes!(site::reload_site))
+        .routes(routes!(metrics::metrics))
+        .routes(routes!(serve_openapi_json))
+}
+
+/// The OpenAPI document as utoipa derives it from the routes and the DTOs; what is served
+/// and committed is this with the alternatives and the configuration written in
+/// ([`openapi_json`]).
+pub fn openapi() -> utoipa::openapi::OpenApi {
+    api_router().into_openapi()
+}
+
+/// The OpenAPI document of a server configured as `served`, as pretty JSON with a final
+/// newline: what `qrpose openapi [--site]` prints, `GET /openapi.json` serves and
+/// `openapi/openapi.json` (no site) and `openapi/openapi-site.json` hold.
+///
+/// # Errors
+/// Only if the document cannot be serialised, which a derived document always can.
+pub fn openapi_json(served: Served) -> Result<String, serde_json::Error> {
+    let mut doc = serde_json::to_value(openapi())?;
+    forms::document_forms(&mut doc);
+    requests::write_alternatives(&mut doc, served);
+    query::parameters_as_served(&mut doc, served);
+    serde_json::to_string_pretty(&doc).map(|json| json + "\n")
+}
+
+/// The OpenAPI 3.1 document of this API as this server is configured (identical to
+/// `qrpose openapi`, or `qrpose openapi --site` when a site is loaded).
+#[utoipa::path(
+    get,
+    path = "/openapi.json",
+    tag = "operations",
+    operation_id = "openapi_json",
+    responses((status = 200, description = "The OpenAPI 3.1 document.", body = Object,
+        content_type = "application/json"))
+)]
+pub async fn serve_openapi_json(
+    State(state): State<AppState>,
+) -> Result<impl IntoResponse, ApiError> {
+    let json = rendered(Served::by(&state))
+        .as_ref()
+        .map_err(ApiError::internal)?;
+    Ok(([(header::CONTENT_TYPE, "application/json")], json.clone()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_configuration_is_rendered_once_as_it_is_rendered() {
+        for site in [false, true] {
+            for zxing_cpp in [false, true] {
+                let served = Served { site, zxing_cpp };
+                let cached = rendered(served).as_ref().expect("renders");
+                let fresh = openapi_json(served).expect("renders");
+                assert_eq!(cached.as_ref(), fresh.as_bytes(), "{served:?}");
+            }
+        }
+    }
+}
