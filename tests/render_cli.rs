@@ -1,6 +1,7 @@
 //! `qrpose render` with several codes: `--random-scene` and `--scene FILE.json` print the
 //! ground truth of every code under `codes` and write the image; the single-code flags
-//! cannot be mixed with them.
+//! cannot be mixed with them. `--sequence` writes rendered video (JPEG frames or a `.y4m`
+//! file) and one truth line per frame.
 
 use serde_json::{Value, json};
 use std::path::PathBuf;
@@ -157,5 +158,155 @@ fn scene_flags_refuse_single_code_flags_and_bad_scenes() {
     let problem: Value = serde_json::from_slice(&out.stderr).expect("problem json");
     assert_eq!(problem["code"], json!("missing_field"));
     assert_eq!(problem["field"], json!("/codes/0/position_mm"));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A two-code video: 160 × 120, the camera sliding right past the codes in 5 frames.
+const SMALL_SEQUENCE: &str = r#"{
+  "name": "cli-test", "width_px": 160, "height_px": 120,
+  "camera": {"fx_px": 150, "fy_px": 150},
+  "fps": 25,
+  "codes": [
+    {"payload": "ONE", "size_mm": 60, "position_mm": [-60, 0, 500]},
+    {"payload": "TWO", "size_mm": 60, "position_mm": [60, 0, 500],
+     "rotation_euler_xyz_deg": {"beta": 20}}
+  ],
+  "trajectory": {"keyframes": [
+    {"time_ms": 0, "position_mm": [-40, 0, 0], "look_at_mm": [-40, 0, 500]},
+    {"time_ms": 160, "position_mm": [40, 0, 0], "look_at_mm": [40, 0, 500]}
+  ]},
+  "effects": {"supersample": 2, "noise": 1, "jpeg_quality": 80}
+}"#;
+
+fn truth_lines(dir: &std::path::Path) -> Vec<Value> {
+    let text = std::fs::read_to_string(dir.join("truth.jsonl")).expect("truth.jsonl");
+    text.lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect()
+}
+
+#[test]
+fn a_sequence_file_writes_jpeg_frames_and_one_truth_line_each() {
+    let dir = temp_dir("sequence-jpeg");
+    let spec = dir.join("seq.json");
+    std::fs::write(&spec, SMALL_SEQUENCE).expect("writes the sequence");
+    let out = dir.join("frames");
+    let summary = run_json(
+        qrpose()
+            .args(["render", "--sequence"])
+            .arg(&spec)
+            .arg("--out")
+            .arg(&out),
+    );
+    assert_eq!(summary["frames"], json!(5), "0-160 ms at 25 fps");
+    assert_eq!(summary["sequence"], json!("cli-test"));
+    let lines = truth_lines(&out);
+    assert_eq!(lines.len(), 5);
+    for (k, line) in lines.iter().enumerate() {
+        assert_eq!(line["index"], json!(k));
+        let t = line["capture_time_ms"].as_f64().expect("time");
+        assert!((t - 40.0 * k as f64).abs() < 1e-9, "1000 / 25 ms apart");
+        let name = line["image"].as_str().expect("image name");
+        assert_eq!(name, format!("frame_{k:05}.jpg"));
+        let bytes = std::fs::read(out.join(name)).expect("the frame exists");
+        assert!(bytes.starts_with(&[0xFF, 0xD8]), "a JPEG");
+        let codes = line["codes"].as_array().expect("codes");
+        assert!(!codes.is_empty(), "frame {k} sees a code");
+        for c in codes {
+            assert!(c["corners_px"].as_array().is_some_and(|a| a.len() == 4));
+            assert!(c["side_px"].as_f64().is_some() && c["fully_in_view"].is_boolean());
+        }
+    }
+    // The sequence as rendered loads again and renders the same truth.
+    let again = dir.join("again");
+    run_json(
+        qrpose()
+            .args(["render", "--sequence"])
+            .arg(out.join("sequence.json"))
+            .arg("--out")
+            .arg(&again),
+    );
+    assert_eq!(truth_lines(&again), lines);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_builtin_sequence_writes_a_y4m_video_with_camera_overrides() {
+    let dir = temp_dir("sequence-y4m");
+    let video = dir.join("still.y4m");
+    let summary = run_json(
+        qrpose()
+            .args([
+                "render",
+                "--sequence",
+                "still",
+                "--frames",
+                "5",
+                "--width-px",
+                "320",
+            ])
+            .args([
+                "--height-px",
+                "180",
+                "--fx-px",
+                "250",
+                "--fy-px",
+                "250",
+                "--y4m",
+            ])
+            .arg(&video)
+            .arg("--out")
+            .arg(&dir),
+    );
+    assert_eq!(summary["frames"], json!(5));
+    assert_eq!(summary["camera"]["cx_px"], json!(159.5));
+    let bytes = std::fs::read(&video).expect("the video exists");
+    let header = "YUV4MPEG2 W320 H180 F30:1 Ip A1:1 C420jpeg\n";
+    assert!(bytes.starts_with(header.as_bytes()));
+    let frame = 320 * 180 * 3 / 2;
+    assert_eq!(bytes.len(), header.len() + 5 * (6 + frame));
+    for k in 0..5 {
+        let at = header.len() + k * (6 + frame);
+        assert_eq!(&bytes[at..at + 6], b"FRAME\n");
+    }
+    let lines = truth_lines(&dir);
+    assert_eq!(lines.len(), 5);
+    assert!(lines.iter().all(|l| l.get("image").is_none()));
+    assert_eq!(lines[0]["codes"].as_array().map(Vec::len), Some(4));
+    assert!(!dir.join("frame_00000.jpg").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn sequence_flags_refuse_photo_flags_and_unknown_sequences() {
+    let dir = temp_dir("sequence-refuse");
+    let status = |args: &[&str]| {
+        qrpose()
+            .arg("render")
+            .args(args)
+            .arg("--out")
+            .arg(&dir)
+            .output()
+            .expect("runs")
+            .status
+            .code()
+    };
+    assert_eq!(status(&["--sequence", "still", "--payload", "A"]), Some(2));
+    assert_eq!(
+        status(&["--sequence", "still", "--random-scene", "1"]),
+        Some(2)
+    );
+    assert_eq!(
+        status(&["--y4m", "x.y4m"]),
+        Some(2),
+        "--y4m needs --sequence"
+    );
+    assert_eq!(
+        status(&["--frames", "3"]),
+        Some(2),
+        "--frames needs --sequence"
+    );
+    assert_eq!(status(&["--sequence", "no-such-sequence"]), Some(1));
+    assert_eq!(status(&["--sequence", "still", "--fps", "0"]), Some(2));
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -47,7 +47,8 @@ pub enum Command {
     Openapi(openapi::OpenapiArgs),
     /// Exit 0 when the service's /healthz answers 200 (for container health checks).
     Healthcheck(healthcheck::HealthcheckArgs),
-    /// Render a synthetic photo of a QR code at a given pose; prints its ground truth.
+    /// Render a synthetic photo of a QR code at a given pose, or a video of a camera moving
+    /// past codes (--sequence); prints its ground truth.
     Render(render::RenderArgs),
     /// Site files (docs/site.md): `qrpose site check FILE` validates one and prints what it
     /// resolves to.

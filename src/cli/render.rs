@@ -1,11 +1,13 @@
 //! `qrpose render`: a synthetic photo of a QR code at a given pose and camera, and its
 //! ground truth (corners px in qr order, finder corners, pose, camera) as JSON on stdout;
 //! or of several codes, from a JSON scene file (`--scene`) or drawn at random
-//! (`--random-scene`), with the ground truth of every code under `codes`.
+//! (`--random-scene`), with the ground truth of every code under `codes`; or a rendered
+//! video (`--sequence`, module `sequence`): frames, their truth, and the sequence file.
 
 use super::estimate::{print_json, report_problem};
 use clap::Args;
 mod camera;
+mod sequence;
 
 use camera::{CameraSpec, DistortionSpec, camera, camera_json};
 use qrpose::api::camera::DistortionModelDto;
@@ -39,13 +41,24 @@ const SINGLE_CODE_FLAGS: [&str; 15] = [
     "gamma_deg",
 ];
 
+/// Default image size, px.
+const DEFAULT_SIZE_PX: [u32; 2] = [1280, 720];
+/// Default focal length, px.
+const DEFAULT_FOCAL_PX: f64 = 1000.0;
+/// Default JPEG quality.
+const DEFAULT_JPEG_QUALITY: u8 = 90;
+
 /// Arguments of `render`.
 #[derive(Debug, Args)]
 #[command(after_long_help = SCENE_HELP)]
 pub struct RenderArgs {
-    /// Output image; `.png` writes PNG, anything else JPEG at --jpeg-quality.
+    /// Output image; `.png` writes PNG, anything else JPEG at --jpeg-quality. With
+    /// --sequence, the output directory (created if missing).
     #[arg(long)]
     pub out: PathBuf,
+    // --sequence and its flags: a rendered video instead of a photo.
+    #[command(flatten)]
+    pub video: sequence::SequenceArgs,
     /// Render the codes of a JSON scene file instead of one code from the flags below
     /// (format in the long help, `--help`); the effect flags still apply. The JSON printed
     /// lists every code under "codes".
@@ -73,18 +86,18 @@ pub struct RenderArgs {
     /// Side of the symbol, mm (finder edge to finder edge, quiet zone excluded).
     #[arg(long, default_value_t = 50.0)]
     pub marker_size_mm: f64,
-    /// Image width, px.
-    #[arg(long, default_value_t = 1280)]
-    pub width_px: u32,
-    /// Image height, px.
-    #[arg(long, default_value_t = 720)]
-    pub height_px: u32,
-    /// Horizontal focal length, px.
-    #[arg(long, default_value_t = 1000.0)]
-    pub fx_px: f64,
-    /// Vertical focal length, px.
-    #[arg(long, default_value_t = 1000.0)]
-    pub fy_px: f64,
+    /// Image width, px [default: 1280, or the sequence's].
+    #[arg(long)]
+    pub width_px: Option<u32>,
+    /// Image height, px [default: 720, or the sequence's].
+    #[arg(long)]
+    pub height_px: Option<u32>,
+    /// Horizontal focal length, px [default: 1000, or the sequence's].
+    #[arg(long)]
+    pub fx_px: Option<f64>,
+    /// Vertical focal length, px [default: 1000, or the sequence's].
+    #[arg(long)]
+    pub fy_px: Option<f64>,
     /// Principal point, px (default: the image centre, (width − 1) / 2).
     #[arg(long, allow_negative_numbers = true)]
     pub cx_px: Option<f64>,
@@ -118,27 +131,29 @@ pub struct RenderArgs {
     /// See --alpha-deg.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub gamma_deg: f64,
-    /// Supersampling per pixel axis (anti-aliasing), 1-16.
-    #[arg(long, default_value_t = 4)]
-    pub supersample: u32,
-    /// Gaussian lens blur σ, px.
-    #[arg(long, default_value_t = 0.0)]
-    pub blur_px: f64,
-    /// Sensor noise σ, grey levels.
-    #[arg(long, default_value_t = 0.0)]
-    pub noise: f64,
-    /// Uneven lighting: illumination drop across the image, 0-0.9.
-    #[arg(long, default_value_t = 0.0)]
-    pub lighting: f64,
+    /// Supersampling per pixel axis (anti-aliasing), 1-16 [default: 4, or the sequence's].
+    #[arg(long)]
+    pub supersample: Option<u32>,
+    /// Gaussian lens blur σ, px [default: 0, or the sequence's].
+    #[arg(long)]
+    pub blur_px: Option<f64>,
+    /// Sensor noise σ, grey levels [default: 0, or the sequence's].
+    #[arg(long)]
+    pub noise: Option<f64>,
+    /// Uneven lighting: illumination drop across the image, 0-0.9 [default: 0, or the
+    /// sequence's].
+    #[arg(long)]
+    pub lighting: Option<f64>,
     /// Number of random background shapes.
     #[arg(long, default_value_t = 0)]
     pub clutter: u32,
-    /// JPEG quality, 1-100.
-    #[arg(long, default_value_t = 90)]
-    pub jpeg_quality: u8,
-    /// Seed of every random choice (noise, clutter, lighting direction).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    /// JPEG quality, 1-100 [default: 90, or the sequence's].
+    #[arg(long)]
+    pub jpeg_quality: Option<u8>,
+    /// Seed of every random choice (noise, clutter, lighting direction) [default: 0, or the
+    /// sequence's].
+    #[arg(long)]
+    pub seed: Option<u64>,
     /// Indent the JSON.
     #[arg(long)]
     pub pretty: bool,
@@ -229,9 +244,10 @@ fn parse_ec_level(text: &str, field: &str) -> Result<EcLevel, Problem> {
 }
 
 fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
+    let [width_px, height_px] = image_size(args);
     let spec = CameraSpec {
-        fx_px: args.fx_px,
-        fy_px: args.fy_px,
+        fx_px: args.fx_px.unwrap_or(DEFAULT_FOCAL_PX),
+        fy_px: args.fy_px.unwrap_or(DEFAULT_FOCAL_PX),
         cx_px: args.cx_px,
         cy_px: args.cy_px,
         distortion: args
@@ -242,12 +258,7 @@ fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
                 coefficients: coefficients.clone(),
             }),
     };
-    let camera = camera(
-        &spec,
-        args.width_px,
-        args.height_px,
-        "distortion_coefficients",
-    )?;
+    let camera = camera(&spec, width_px, height_px, "distortion_coefficients")?;
     let marker = Marker::try_new(args.marker_size_mm).map_err(|e| {
         Problem::new(ErrorCode::InvalidMarkerSize, e.to_string()).with_field("marker_size_mm")
     })?;
@@ -259,8 +270,8 @@ fn scene(args: &RenderArgs) -> Result<Scene, Problem> {
         ec_level,
         marker,
         camera,
-        width_px: args.width_px,
-        height_px: args.height_px,
+        width_px,
+        height_px,
         pose: marker.pose_centred_at(r, centre),
     })
 }
@@ -332,9 +343,10 @@ fn run_multi(args: &RenderArgs, effects: &Effects) -> ExitCode {
         }
     } else {
         let seed = args.random_scene.unwrap_or_default();
+        let [width_px, height_px] = image_size(args);
         let ranges = SceneRanges {
-            width_px: args.width_px,
-            height_px: args.height_px,
+            width_px,
+            height_px,
             quiet_zone_modules: effects.quiet_zone_modules,
             ..SceneRanges::default()
         };
@@ -382,25 +394,37 @@ fn run_multi(args: &RenderArgs, effects: &Effects) -> ExitCode {
     print_json(&out, args.pretty)
 }
 
+/// The image size of a photo: the flags, or 1280 × 720.
+fn image_size(args: &RenderArgs) -> [u32; 2] {
+    [
+        args.width_px.unwrap_or(DEFAULT_SIZE_PX[0]),
+        args.height_px.unwrap_or(DEFAULT_SIZE_PX[1]),
+    ]
+}
+
 /// Runs `render`.
 pub fn run(args: &RenderArgs) -> ExitCode {
+    if let Some(value) = &args.video.sequence {
+        return sequence::run(value, args);
+    }
     let png = args
         .out
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    let defaults = Effects::default();
     let effects = Effects {
-        supersample: args.supersample,
-        blur_px: args.blur_px,
-        noise: args.noise,
-        lighting: args.lighting,
+        supersample: args.supersample.unwrap_or(defaults.supersample),
+        blur_px: args.blur_px.unwrap_or(defaults.blur_px),
+        noise: args.noise.unwrap_or(defaults.noise),
+        lighting: args.lighting.unwrap_or(defaults.lighting),
         clutter: args.clutter,
         encoding: if png {
             Encoding::Png
         } else {
-            Encoding::Jpeg(args.jpeg_quality)
+            Encoding::Jpeg(args.jpeg_quality.unwrap_or(DEFAULT_JPEG_QUALITY))
         },
-        seed: args.seed,
-        ..Effects::default()
+        seed: args.seed.unwrap_or(defaults.seed),
+        ..defaults
     };
     if args.scene.is_some() || args.random_scene.is_some() {
         return run_multi(args, &effects);
@@ -418,7 +442,7 @@ pub fn run(args: &RenderArgs) -> ExitCode {
         return ExitCode::FAILURE;
     }
     let truth = json!({
-        "image": {"path": args.out, "width_px": args.width_px, "height_px": args.height_px},
+        "image": {"path": args.out, "width_px": scene.width_px, "height_px": scene.height_px},
         "payload": args.payload,
         "camera": camera_json(&scene.camera),
         "marker": {"size_mm": scene.marker.size_mm()},
