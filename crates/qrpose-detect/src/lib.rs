@@ -1,22 +1,22 @@
 //! Image to QR codes: decode the bytes, find every symbol with one or more backends, read
 //! it, and refine its corners to a fraction of a pixel. No async, no HTTP.
 //!
-//! - [`decode`]: bytes → [`decode::GrayImage`], with [`decode::DecodeLimits`].
-//! - Backends behind [`Detector`]: [`rqrr`] and [`rxing`] always; `zxing_cpp` with the
-//!   `zxing-cpp` cargo feature. [`DetectorChoice::Auto`] reads the whole frame once or twice
-//!   and then looks closer only where a finder-pattern triple was found but not read
-//!   ([`region`]), within a [`Budget`] (effort and deadline, [`budget`]); results are
-//!   merged by position. Symbols found but not read are read again through their refined
-//!   module grid ([`reread`]).
-//! - [`corners`]: sub-pixel corners and the twelve finder-pattern corners, whatever the
-//!   backend ([`profile`] measures single edges, [`homography`] maps the module grid).
+//! The crate is grouped by what each part does:
 //!
-//! Where things live: the backend registry and the shared types ([`Backend`],
-//! [`Candidate`], [`Detector`], [`detector_for`]) in module `backend`; merging the
-//! results of several passes ([`merge_candidates`]) and re-reading undecoded ones in
-//! module `merge`; the `auto` strategy and its constants in module `auto` (all three
-//! re-exported here); image filters in [`filters`]; the raster in [`gray`]; containing
-//! panics of third-party code in [`contain`]; photo to poses in [`pipeline`].
+//! | module | what it owns |
+//! |---|---|
+//! | [`decode`] | bytes → [`raster::GrayImage`], within [`decode::DecodeLimits`] |
+//! | [`raster`] | the grey image and the whole-image filters (sharpen, blur, rescale) |
+//! | [`backends`] | the detector libraries behind [`Detector`]: rqrr, rxing (with this crate's rewrites of rxing's binarisers and finder search), zxing-cpp with the `zxing-cpp` feature |
+//! | [`search`] | the `auto` strategy: whole-frame reads, then closer looks only where a code may be (regions, finder pairs), merging, re-reading through the module grid |
+//! | [`refine`] | sub-pixel corners and finder corners from edge profiles and the module grid |
+//! | [`budget`], [`cancel`] | what detection may spend: effort, deadline, cancellation, and the log of the passes that ran |
+//! | [`pipeline`] | photo to poses: detection, then each code's pose at its own size |
+//! | [`contain`] | panics of third-party code turned into values |
+//!
+//! The entry points are here: [`detect_within`] (every code of an image within a
+//! [`Budget`]), [`detect_codes`] and [`find_candidates`]; [`pipeline::locate_markers`]
+//! adds the poses.
 //!
 //! Conventions: corners in `"qr"` order (top-left, top-right, bottom-right, bottom-left of
 //! the symbol), pixels with integer pixel centres (docs/conventions.md).
@@ -25,46 +25,38 @@
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
 #![allow(clippy::cast_possible_truncation)]
 
-mod auto;
-mod backend;
-pub mod binarizer;
+pub mod backends;
 pub mod budget;
 pub mod cancel;
 pub mod contain;
-pub mod corners;
 pub mod decode;
-pub mod filters;
-mod finder_scan;
-pub mod finders;
-pub mod global_binarizer;
-pub mod gray;
-pub mod homography;
-mod merge;
-pub mod pairs;
 pub mod pipeline;
-pub mod profile;
-pub mod region;
-pub mod reread;
-pub mod rqrr;
-pub mod rxing;
-#[cfg(feature = "zxing-cpp")]
-pub mod zxing_cpp;
+pub mod raster;
+pub mod refine;
+pub mod search;
 
-pub use auto::{
-    DENOISE_SIGMA_PX, HALF_SCALE_FIRST_MIN_SIDE_PX, SHARPEN_AMOUNT, SHARPEN_DOUBLE_AMOUNT,
-    SHARPEN_DOUBLE_SIGMA_PX, SHARPEN_SIGMA_PX, UPSCALE_MAX_SIDE_PX,
-};
-pub use backend::{
+pub use backends::{
     Backend, Candidate, DetectError, Detector, DetectorChoice, auto_order, detector_for,
 };
 pub use budget::{Budget, Effort, PassLog, PassReport};
-pub use filters::{downscale_half, invert, sharpen, stretch_contrast, upscale_double};
-pub use merge::merge_candidates;
+pub use raster::filters::{downscale_half, invert, sharpen, stretch_contrast, upscale_double};
+pub use search::auto::{
+    DENOISE_SIGMA_PX, HALF_SCALE_FIRST_MIN_SIDE_PX, SHARPEN_AMOUNT, SHARPEN_DOUBLE_AMOUNT,
+    SHARPEN_DOUBLE_SIGMA_PX, SHARPEN_SIGMA_PX, UPSCALE_MAX_SIDE_PX,
+};
+pub use search::merge::merge_candidates;
+// The paths of the flat layout, until the callers move to the grouped one.
+#[cfg(feature = "zxing-cpp")]
+pub use backends::zxing_cpp;
+pub use backends::{rqrr, rxing};
+pub use raster::{filters, gray};
+pub use refine::{corners, finders, homography, profile};
+pub use search::{pairs, region, reread};
 
-use corners::{RefineStatus, refine_corners};
-use gray::GrayImage;
-use merge::reread_undecoded;
 use qrpose_core::geometry::frames::PixelPoint;
+use raster::GrayImage;
+use refine::corners::{RefineStatus, refine_corners};
+use search::merge::reread_undecoded;
 
 /// One detected symbol with refined corners.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,7 +64,7 @@ pub struct DetectedCode {
     /// What the backend reported.
     pub candidate: Candidate,
     /// Refined corners and finder corners.
-    pub refinement: corners::Refinement,
+    pub refinement: refine::corners::Refinement,
 }
 
 impl DetectedCode {
@@ -102,7 +94,7 @@ pub fn find_candidates(
 
 /// The candidates of `choice` at `effort`, passes recorded in `log` (whose deadline bounds
 /// `auto`). A single backend runs one pass and reads what it found but could not decode
-/// again through the refined module grid ([`reread`]).
+/// again through the refined module grid ([`search::reread`]).
 fn find_logged(
     image: &GrayImage,
     choice: DetectorChoice,
@@ -120,7 +112,7 @@ fn find_logged(
             reread_undecoded(image, &mut found, &mut Vec::new());
             Ok(found)
         }
-        DetectorChoice::Auto => Ok(auto::find_candidates(image, effort, log)),
+        DetectorChoice::Auto => Ok(search::auto::find_candidates(image, effort, log)),
     }
 }
 

@@ -15,8 +15,8 @@
 //! ([`refine_corners_through`]; a fisheye bows the sides by pixels, issue 14); without
 //! distortion the detector's corners are used as they are.
 
-use crate::corners::{Lens, RefineStatus, refine_corners_through};
-use crate::finders::finder_marker_points;
+use crate::refine::corners::{Lens, RefineStatus, refine_corners_through};
+use crate::refine::finders::finder_marker_points;
 use crate::{
     Budget, DetectError, DetectedCode, DetectorChoice, PassReport, decode::GrayImage, detect_within,
 };

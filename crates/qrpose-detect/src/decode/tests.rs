@@ -334,7 +334,7 @@ fn a_qr_code_printed_in_cmyk_is_still_read() {
     for color in [ColorType::Cmyk, ColorType::CmykAsYcck] {
         let bytes = encode_4_channels(&ink, side as u16, side as u16, color);
         let image = decode_gray(&bytes, &DecodeLimits::default()).expect("decodes");
-        let found = crate::rqrr::RqrrDetector.detect(&image);
+        let found = crate::backends::rqrr::RqrrDetector.detect(&image);
         let texts: Vec<_> = found.iter().filter_map(|c| c.text.clone()).collect();
         assert_eq!(texts, ["CMYK-1"], "{color:?}");
     }

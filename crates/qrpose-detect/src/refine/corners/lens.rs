@@ -16,7 +16,7 @@
 //! [`Grid`] calls the homography alone, so the refinement is the same, bit for bit, as
 //! without a camera. Frames and the pixel convention: docs/conventions.md.
 
-use crate::homography::{Homography, ModulePoint};
+use crate::refine::homography::{Homography, ModulePoint};
 use qrpose_core::geometry::camera::Camera;
 use qrpose_core::geometry::frames::{NormalizedPoint, PixelPoint};
 

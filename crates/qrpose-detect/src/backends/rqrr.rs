@@ -7,12 +7,12 @@
 //! - `Grid::bounds` maps module coordinates (0, 0), (N + 1, 0), (N + 1, N + 1), (0, N + 1):
 //!   the top-right, bottom-right and bottom-left corners lie one module too far out. The
 //!   homography through the four bounds is evaluated at N instead, and the result rounded
-//!   to whole pixels anyway; [`super::corners`] refines it.
+//!   to whole pixels anyway; [`crate::refine::corners`] refines it.
 
-use super::decode::GrayImage;
-use super::homography::Homography;
 use super::{Backend, Candidate, Detector};
 use crate::contain::contain;
+use crate::raster::GrayImage;
+use crate::refine::homography::Homography;
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// rqrr behind the [`Detector`] interface.

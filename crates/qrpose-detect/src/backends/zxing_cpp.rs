@@ -12,9 +12,9 @@
 //! passes). Text comes in zxing-cpp's `Plain` mode: the content itself, not its
 //! human-readable rendering (`<SOH>` for control characters, `(01)` for GS1 fields).
 
-use super::decode::GrayImage;
 use super::{Backend, Candidate, Detector};
 use crate::contain::contain;
+use crate::raster::GrayImage;
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// zxing-cpp behind the [`Detector`] interface.

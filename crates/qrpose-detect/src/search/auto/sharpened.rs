@@ -1,7 +1,7 @@
 //! Step 1½ of `auto` (`balanced`, `thorough`): the sharpened read of the whole frame, its
 //! trigger ([`reads_small_codes`]), and the small crops it looks at once more: finder
 //! triples it found but could not read, and pairs of lone finder patterns
-//! ([`crate::pairs`]) where the third pattern was lost to the blur.
+//! ([`crate::search::pairs`]) where the third pattern was lost to the blur.
 
 use super::Finds;
 use super::UPSCALE_MAX_SIDE_PX;
@@ -9,16 +9,16 @@ use super::passes::{
     SHARPEN_AMOUNT, SHARPEN_SIGMA_PX, SecondPass, decoded, double, double_sharpened,
     quad_sharpened, read_crop,
 };
+use crate::backends::rxing::RxingDetector;
 use crate::budget::PassLog;
-use crate::corners::{RefineStatus, refine_corners};
-use crate::filters::sharpen;
-use crate::gray::GrayImage;
-use crate::merge::any_decoded;
-use crate::merge::shortest_side_px;
-use crate::pairs::{lone_regions, pair_regions};
-use crate::region::{Crop, Region, same_place, unread_regions};
-use crate::reread::reread;
-use crate::rxing::RxingDetector;
+use crate::raster::filters::sharpen;
+use crate::raster::gray::GrayImage;
+use crate::refine::corners::{RefineStatus, refine_corners};
+use crate::search::merge::any_decoded;
+use crate::search::merge::shortest_side_px;
+use crate::search::pairs::{lone_regions, pair_regions};
+use crate::search::region::{Crop, Region, same_place, unread_regions};
+use crate::search::reread::reread;
 use crate::{Backend, Candidate, Detector, detector_for};
 use std::time::Instant;
 

@@ -8,8 +8,8 @@
 #![allow(clippy::cast_possible_truncation)]
 
 use super::lens::Grid;
-use crate::gray::GrayImage;
-use crate::homography::ModulePoint;
+use crate::raster::gray::GrayImage;
+use crate::refine::homography::ModulePoint;
 
 /// Module colours: `Some(true)` dark, `Some(false)` light, `None` unknown. Outside the
 /// symbol everything is light (the quiet zone).

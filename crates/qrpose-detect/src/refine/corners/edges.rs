@@ -1,6 +1,6 @@
 //! Edge observations (stage 3 of [`super::refine_corners`]): the edge sites of a symbol
 //! (every module boundary on its outer sides and on the four sides of each finder), the
-//! module pattern across each, and one 1-D profile fit per site ([`crate::profile`]) that
+//! module pattern across each, and one 1-D profile fit per site ([`crate::refine::profile`]) that
 //! puts an image point on a known line of the module grid.
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
@@ -10,9 +10,9 @@
 use super::MIN_PX_PER_MODULE;
 use super::lens::Grid;
 use super::modules::ModuleMap;
-use crate::gray::GrayImage;
-use crate::homography::ModulePoint;
-use crate::profile::{DarkRun, fit_profile};
+use crate::raster::gray::GrayImage;
+use crate::refine::homography::ModulePoint;
+use crate::refine::profile::{DarkRun, fit_profile};
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// Half-length of a profile across an edge, modules.
@@ -192,7 +192,7 @@ fn point_on(axis: Axis, c: f64, t: f64, d: f64) -> ModulePoint {
 /// the lens's image of a straight module-grid segment across the edge.
 /// `scan`: the first pass, from a backend's whole-pixel corners: every other site only (it
 /// just brings the homography close), each searched over
-/// ±[`crate::profile::MAX_SHIFT_MODULES`]; later passes measure every site, starting at the
+/// ±[`crate::refine::profile::MAX_SHIFT_MODULES`]; later passes measure every site, starting at the
 /// current edge.
 pub(super) fn observe(
     image: &GrayImage,

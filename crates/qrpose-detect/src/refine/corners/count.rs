@@ -8,8 +8,8 @@
 
 use super::MIN_PX_PER_MODULE;
 use super::modules::{function_module_count, function_modules};
-use crate::gray::GrayImage;
-use crate::homography::{Homography, ModulePoint};
+use crate::raster::gray::GrayImage;
+use crate::refine::homography::{Homography, ModulePoint};
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// How well the function patterns (finders, separators, timing) under the corners match

@@ -10,7 +10,7 @@
 //! a crop, so that the extra work lands where a code may be and nowhere else.
 
 use crate::Candidate;
-use crate::region::Region;
+use crate::search::region::Region;
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// A finder pattern that a read found but used in no decoded symbol.

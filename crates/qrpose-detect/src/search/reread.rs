@@ -3,7 +3,7 @@
 //! A backend that finds a symbol but cannot read it (rqrr and zxing-cpp report such
 //! symbols) sampled its modules through whole-pixel corners. At about 2 px per module that
 //! is a module off in places, and the Reed-Solomon code gives up. After
-//! [`super::corners::refine_corners`] the module grid is known to a few hundredths of a
+//! [`crate::refine::corners::refine_corners`] the module grid is known to a few hundredths of a
 //! pixel, so the modules are sampled again at their centres through the refined
 //! homography and handed to rqrr's decoder (format information, unmasking, Reed-Solomon,
 //! segments).
@@ -15,11 +15,11 @@
 //! light; the threshold is first their average, then the symbol-wide mid-grey alone, then
 //! the local mean alone.
 
-use super::decode::GrayImage;
-use super::homography::{Homography, ModulePoint};
 use crate::contain::contain;
-use crate::filters::sharpen;
-use crate::region::{Crop, Region};
+use crate::raster::GrayImage;
+use crate::raster::filters::sharpen;
+use crate::refine::homography::{Homography, ModulePoint};
+use crate::search::region::{Crop, Region};
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// Side of the square window of module centres whose mean is a module's threshold.

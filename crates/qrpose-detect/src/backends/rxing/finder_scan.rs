@@ -6,7 +6,7 @@
 //! same order (`tests::finds_what_rxing_finds`); the checks of each candidate are rxing's
 //! own public functions.
 
-use crate::rxing::WORD_BITS;
+use super::WORD_BITS;
 use rxing::Point;
 use rxing::common::BitMatrix;
 use rxing::common::cpp_essentials::{
@@ -141,7 +141,7 @@ fn seek(word: usize, black: bool) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rxing::local_binarizer;
+    use crate::backends::rxing::local_binarizer;
     use rxing::{Binarizer, Luma8Source};
 
     /// rxing's run lengths, bit by bit.
@@ -247,9 +247,9 @@ mod tests {
     #[test]
     #[ignore = "reads a folder of photos named by QRPOSE_FINDER_PHOTOS"]
     fn finds_what_rxing_finds_on_photos() {
+        use crate::backends::rxing::global_binarizer::global_binarizer;
         use crate::decode::{DecodeLimits, decode_gray};
-        use crate::filters::downscale_half;
-        use crate::global_binarizer::global_binarizer;
+        use crate::raster::filters::downscale_half;
         let root = std::env::var("QRPOSE_FINDER_PHOTOS").expect("QRPOSE_FINDER_PHOTOS");
         let mut stack = vec![std::path::PathBuf::from(root)];
         let (mut photos, mut patterns) = (0, 0);

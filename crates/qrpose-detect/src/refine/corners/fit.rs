@@ -8,7 +8,7 @@
 #![allow(clippy::cast_possible_truncation)]
 
 use super::edges::{Axis, Observation};
-use crate::homography::Homography;
+use crate::refine::homography::Homography;
 use nalgebra::{DMatrix, Matrix3};
 use qrpose_core::geometry::frames::PixelPoint;
 

@@ -11,7 +11,7 @@
 #![allow(clippy::cast_possible_truncation)]
 
 use crate::Candidate;
-use crate::gray::GrayImage;
+use crate::raster::gray::GrayImage;
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// An axis-aligned box of the image where a symbol may be, px.

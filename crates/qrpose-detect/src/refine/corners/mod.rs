@@ -51,8 +51,8 @@ mod modules;
 pub use count::estimate_module_count;
 pub use lens::Lens;
 
-use crate::gray::GrayImage;
-use crate::homography::ModulePoint;
+use crate::raster::gray::GrayImage;
+use crate::refine::homography::ModulePoint;
 use edges::observe;
 use fit::{finder_corners, fit_homography};
 use lens::Grid;

@@ -12,7 +12,7 @@
 //! [`sharpen`] (u8 in and out: speed), `f64` for the renderer's plane (before noise and
 //! quantisation).
 
-use super::decode::GrayImage;
+use crate::raster::GrayImage;
 use std::iter::Sum;
 use std::ops::{AddAssign, Mul};
 

@@ -14,15 +14,15 @@
 //!    `thorough` read an unsharp-masked copy of frames up to [`UPSCALE_MAX_SIDE_PX`] once
 //!    more ([`find_sharpened`], after step 2): small codes under blur lose their finder
 //!    patterns' light ring to the binariser; small triples found only there, and the places
-//!    of pairs of lone finder patterns found there ([`crate::pairs`]), get one double-scale
+//!    of pairs of lone finder patterns found there ([`crate::search::pairs`]), get one double-scale
 //!    sharpened read of their crop, then, for crops of at most [`passes::QUAD_MAX_SIDE_PX`],
 //!    a quadruple-scale sharpened one. In a frame where a code was read, small finder
 //!    patterns of the full-resolution read that no code used get the same crop reads
 //!    ([`sharpened::find_lone`]). Symbols those crop reads locate but cannot decode are
-//!    read again through their module grid ([`crate::reread`]) and dropped if that fails.
+//!    read again through their module grid ([`crate::search::reread`]) and dropped if that fails.
 //! 2. **Look closer** (`balanced`, `thorough`): only where a region is, never on the whole
 //!    frame: a crop around it goes through the other binariser, rqrr, and the image
-//!    variants of [`crate::filters`] (global histogram, denoised, contrast-stretched,
+//!    variants of [`crate::raster::filters`] (global histogram, denoised, contrast-stretched,
 //!    inverted, sharpened, double scale) until it reads. A frame with nothing finder-like
 //!    costs the reads of step 1 and the sharpened read, nothing more.
 //! 3. **Everything** (`thorough`): every backend and every variant on the whole frame, as
@@ -35,16 +35,17 @@
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
 #![allow(clippy::cast_possible_truncation)]
 
-use crate::budget::{Effort, PassLog};
-use crate::filters::downscale_half;
-use crate::gray::GrayImage;
-use crate::merge::{any_decoded, reread_undecoded, same_symbol};
-use crate::pairs::FinderPattern;
-use crate::region::{Crop, Region, unread_regions};
 #[cfg(feature = "zxing-cpp")]
-use crate::zxing_cpp;
-use crate::{Backend, Candidate, Detector, auto_order, detector_for, merge_candidates};
-use crate::{rqrr, rxing};
+use crate::backends::zxing_cpp;
+use crate::backends::{rqrr, rxing};
+use crate::budget::{Effort, PassLog};
+use crate::raster::filters::downscale_half;
+use crate::raster::gray::GrayImage;
+use crate::search::merge::merge_candidates;
+use crate::search::merge::{any_decoded, reread_undecoded, same_symbol};
+use crate::search::pairs::FinderPattern;
+use crate::search::region::{Crop, Region, unread_regions};
+use crate::{Backend, Candidate, Detector, auto_order, detector_for};
 use qrpose_core::geometry::frames::PixelPoint;
 
 mod passes;

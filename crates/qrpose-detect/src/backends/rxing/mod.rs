@@ -9,16 +9,20 @@
 //! bits (a test compares them), faster: rxing sets the matrix one bit at a time, which was
 //! the largest share of its read of a 1280 × 720 frame (3.3 ms with rxing's binariser,
 //! about 1.6 ms with this one, one core). The global-histogram binariser is rxing's too,
-//! rewritten the same way ([`crate::global_binarizer`]).
+//! rewritten the same way ([`global_binarizer`](global_binarizer::global_binarizer)).
 
-use super::decode::GrayImage;
-use super::{Backend, Candidate, Detector};
-use crate::binarizer::Precomputed;
+pub mod binarizer;
+mod finder_scan;
+pub mod global_binarizer;
+
+use crate::backends::{Backend, Candidate, Detector};
 use crate::contain::contain;
-use crate::finder_scan::find_finder_patterns;
-use crate::global_binarizer::global_binarizer;
-use crate::pairs::FinderPattern;
-use crate::region::Region;
+use crate::raster::GrayImage;
+use crate::search::pairs::FinderPattern;
+use crate::search::region::Region;
+use binarizer::Precomputed;
+use finder_scan::find_finder_patterns;
+use global_binarizer::global_binarizer;
 use qrpose_core::geometry::frames::PixelPoint;
 use rxing::common::cpp_essentials::concentric_finder::ConcentricPattern;
 use rxing::common::{BitArray, BitMatrix, DetectorRXingResult};
@@ -44,7 +48,7 @@ impl RxingDetector {
     }
     /// The hybrid binariser, returning also the symbols whose grid was sampled but did not
     /// decode (payload `None`): `auto`'s crop reads of small candidates hand them to the
-    /// re-read through the refined grid ([`crate::reread`]).
+    /// re-read through the refined grid ([`crate::search::reread`]).
     pub fn located() -> Self {
         Self {
             located: true,
@@ -82,7 +86,7 @@ fn detect_unguarded(image: &GrayImage, detector: RxingDetector) -> Read {
 /// QR codes only), step by step through rxing's public parts so that the sampled grid's
 /// size, the module count, is kept: the reader's own results drop it. Triples that do not
 /// sample or decode are returned as [`Region`]s, where `auto` may look again, and so are
-/// the finder patterns that no decoded symbol used (see [`crate::pairs`]).
+/// the finder patterns that no decoded symbol used (see [`crate::search::pairs`]).
 fn read<B: Binarizer>(binarizer: &B, located: bool) -> Read {
     let Ok(binary) = binarizer.get_black_matrix() else {
         return Read::default();

@@ -3,7 +3,7 @@
 //!
 //! Pixel (u, v) covers [u − 0.5, u + 0.5] × [v − 0.5, v + 0.5], so pixel centres lie at
 //! integer coordinates (docs/conventions.md). [`crate::decode`] makes one from image bytes;
-//! [`crate::filters`] transforms one; the detectors and [`crate::corners`] read one.
+//! [`crate::raster::filters`] transforms one; the detectors and [`crate::refine::corners`] read one.
 
 // Pixel indices are floats floored inside the image before the cast, so truncation cannot
 // occur.

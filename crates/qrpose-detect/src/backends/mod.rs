@@ -3,10 +3,12 @@
 //! implements ([`Detector`]), and which detector serves a backend ([`detector_for`],
 //! [`auto_order`]).
 
-use crate::gray::GrayImage;
+pub mod rqrr;
+pub mod rxing;
 #[cfg(feature = "zxing-cpp")]
-use crate::zxing_cpp;
-use crate::{rqrr, rxing};
+pub mod zxing_cpp;
+
+use crate::raster::gray::GrayImage;
 use qrpose_core::geometry::frames::PixelPoint;
 use thiserror::Error;
 

@@ -1,7 +1,7 @@
 //! rxing binarisers whose bit matrix is made at once ([`Precomputed`]): rxing's hybrid
 //! (local) and global-histogram algorithms, reimplemented bit for bit but thresholding a
 //! row and packing a word at a time where rxing sets one bit at a time
-//! ([`crate::rxing::local_binarizer`], [`crate::global_binarizer::global_binarizer`]). Row
+//! ([`super::local_binarizer`], [`super::global_binarizer::global_binarizer`]). Row
 //! queries (1-D readers) go to rxing's global-histogram binariser.
 
 use rxing::common::{BitArray, BitMatrix, GlobalHistogramBinarizer, LineOrientation};

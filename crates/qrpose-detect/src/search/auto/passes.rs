@@ -2,14 +2,14 @@
 //! denoised, stretched, inverted, sharpened, double scale), each variant built only when its
 //! pass runs, and the mapping of what they find back to the source pixels.
 
-use crate::budget::PassLog;
-use crate::filters::{invert, sharpen, stretch_contrast, upscale_double};
-use crate::gray::GrayImage;
-use crate::region::Crop;
 #[cfg(feature = "zxing-cpp")]
-use crate::zxing_cpp;
+use crate::backends::zxing_cpp;
+use crate::backends::{rqrr, rxing};
+use crate::budget::PassLog;
+use crate::raster::filters::{invert, sharpen, stretch_contrast, upscale_double};
+use crate::raster::gray::GrayImage;
+use crate::search::region::Crop;
 use crate::{Backend, Candidate, Detector, detector_for};
-use crate::{rqrr, rxing};
 use qrpose_core::geometry::frames::PixelPoint;
 use std::borrow::Cow;
 use std::time::Instant;

@@ -3,9 +3,10 @@
 //! one ([`merge_candidates`]). Candidates found but not decoded are read again through
 //! their refined module grid first ([`reread_undecoded`]).
 
-use crate::corners::{RefineStatus, refine_corners};
-use crate::gray::GrayImage;
-use crate::{Candidate, reread};
+use crate::Candidate;
+use crate::raster::gray::GrayImage;
+use crate::refine::corners::{RefineStatus, refine_corners};
+use crate::search::reread;
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// Centroid of four corners.
