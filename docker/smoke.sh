@@ -73,17 +73,6 @@ step() {
 
 # ---- 1. tools and the daemon
 step "tools and the Docker daemon"
-missing=()
-[[ -x /usr/sbin/dockerd && -x /usr/bin/docker ]] || missing+=(docker.io)
-command -v debootstrap >/dev/null || missing+=(debootstrap)
-command -v docker-compose >/dev/null || missing+=(docker-compose)
-command -v curl >/dev/null || missing+=(curl)
-if ((${#missing[@]})); then
-  echo "installing ${missing[*]} from Debian"
-  export DEBIAN_FRONTEND=noninteractive
-  apt-get update -qq
-  apt-get install -y -qq "${missing[@]}" >/dev/null
-fi
 # Debian's client (20.10) drives the daemon's own BuildKit; a newer client elsewhere on the
 # PATH would want a buildx plugin.
 DOCKER="${DOCKER:-/usr/bin/docker}"
@@ -108,6 +97,19 @@ cleanup() {
 }
 trap cleanup EXIT
 
+missing=()
+[[ -x /usr/sbin/dockerd && -x /usr/bin/docker ]] || missing+=(docker.io)
+command -v debootstrap >/dev/null || missing+=(debootstrap)
+command -v docker-compose >/dev/null || missing+=(docker-compose)
+command -v curl >/dev/null || missing+=(curl)
+if ((${#missing[@]})); then
+  echo "installing ${missing[*]} from Debian"
+  export DEBIAN_FRONTEND=noninteractive
+  if ! { apt-get update -qq && apt-get install -y -qq "${missing[@]}"; } >"$WORK/apt.log" 2>&1; then
+    tail -20 "$WORK/apt.log"
+    die "apt-get install ${missing[*]} failed"
+  fi
+fi
 if ! "$DOCKER" info >/dev/null 2>&1; then
   echo "starting dockerd (log: $WORK/dockerd.log)"
   /usr/sbin/dockerd >"$WORK/dockerd.log" 2>&1 &
