@@ -3,7 +3,9 @@
 # machine, the container checked as it will run, and docker/compose.yaml's balancer with two
 # replicas, one killed under load. Run by .ci/run; run it by hand the same way (as root):
 #
-#   docker/smoke.sh [--src DIR]     DIR: the workspace to build (default: this checkout)
+#   docker/smoke.sh [--src DIR]     DIR: the workspace to build and its tests/curl and
+#                                   scripts/ (default: this checkout; docker/ is always
+#                                   this checkout's)
 #
 # On a machine with no container registry, whose containers reach no package registry:
 #
