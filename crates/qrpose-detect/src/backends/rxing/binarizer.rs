@@ -1,7 +1,7 @@
 //! rxing binarisers whose bit matrix is made at once ([`Precomputed`]): rxing's hybrid
 //! (local) and global-histogram algorithms, reimplemented bit for bit but thresholding a
 //! row and packing a word at a time where rxing sets one bit at a time
-//! ([`super::local_binarizer`], [`super::global_binarizer::global_binarizer`]). Row
+//! ([`super::hybrid_binarizer::local_binarizer`], [`super::global_binarizer::global_binarizer`]). Row
 //! queries (1-D readers) go to rxing's global-histogram binariser.
 
 use rxing::common::{BitArray, BitMatrix, GlobalHistogramBinarizer, LineOrientation};
@@ -76,4 +76,20 @@ impl<LS: LuminanceSource> Binarizer for Precomputed<LS> {
     fn get_height(&self) -> usize {
         self.ghb.get_height()
     }
+}
+
+/// Bits per word of rxing's bit arrays.
+pub(crate) const WORD_BITS: usize = usize::BITS as usize;
+
+/// A word of 0/1 bytes as bits (bit k = byte k), eight bytes per multiplication.
+pub(crate) fn pack_flags(flags: &[u8]) -> usize {
+    flags
+        .chunks_exact(8)
+        .enumerate()
+        .fold(0usize, |acc, (k, eight)| {
+            let mut le = [0u8; 8];
+            le.copy_from_slice(eight);
+            let byte = u64::from_le_bytes(le).wrapping_mul(0x0102_0408_1020_4080) >> 56;
+            acc | (usize::try_from(byte).unwrap_or(0) << (8 * k))
+        })
 }

@@ -6,7 +6,7 @@
 //! same order (`tests::finds_what_rxing_finds`); the checks of each candidate are rxing's
 //! own public functions.
 
-use super::WORD_BITS;
+use super::binarizer::WORD_BITS;
 use rxing::Point;
 use rxing::common::BitMatrix;
 use rxing::common::cpp_essentials::{
@@ -141,7 +141,7 @@ fn seek(word: usize, black: bool) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::backends::rxing::local_binarizer;
+    use crate::backends::rxing::hybrid_binarizer::local_binarizer;
     use rxing::{Binarizer, Luma8Source};
 
     /// rxing's run lengths, bit by bit.

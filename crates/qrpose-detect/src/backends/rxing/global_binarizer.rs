@@ -4,8 +4,8 @@
 //! word at a time, where rxing sets the matrix one bit at a time (the larger part of its
 //! time on `auto`'s half-scale and crop reads). A test compares the bits with rxing's.
 
-use super::binarizer::Precomputed;
-use super::{WORD_BITS, pack_flags};
+use super::binarizer::{WORD_BITS, pack_flags};
+use crate::backends::rxing::binarizer::Precomputed;
 use rxing::LuminanceSource;
 use rxing::common::{BitArray, BitMatrix};
 
