@@ -50,7 +50,13 @@ fn dependency_names(package: &str) -> Vec<String> {
 
 #[test]
 fn the_core_and_the_detector_pull_in_no_async_or_http_crate() {
-    for package in ["qrpose-core", "qrpose-detect", "qrpose-sim", "qrpose-site"] {
+    for package in [
+        "qrpose-core",
+        "qrpose-detect",
+        "qrpose-sim",
+        "qrpose-site",
+        "qrpose-calib",
+    ] {
         let names = dependency_names(package);
         assert!(
             names.iter().any(|n| n == "nalgebra"),
