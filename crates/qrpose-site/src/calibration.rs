@@ -22,11 +22,16 @@
 //!
 //! The camera matrix must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0: qrpose's
 //! camera has no skew term, so a non-zero skew is refused rather than dropped.
+//!
+//! [`opencv_yaml`] and [`ros_camera_info_yaml`] write a camera in the two formats, as files
+//! this reader reads back as they are (module `writer`).
 
 mod document;
 mod error;
+mod writer;
 
 pub use error::CalibrationError;
+pub use writer::{opencv_yaml, ros_camera_info_yaml};
 
 use document::{Document, Matrix};
 use qrpose_core::geometry::camera::{Camera, Distortion, DistortionModel};

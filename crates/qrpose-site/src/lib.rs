@@ -11,7 +11,7 @@
 //! | [`transform`] | rigid transforms between frames and first-order covariance propagation |
 //! | [`localize`] | fusing several robot-pose-in-world estimates, residuals, outlier gate |
 //! | [`prior`] | the planar ambiguity resolved by an expected rotation |
-//! | [`calibration`] | OpenCV and ROS calibration files read into a camera |
+//! | [`calibration`] | OpenCV and ROS calibration files read into a camera, and written from one |
 //! | [`error`] | [`SiteError`]: file, line, reason |
 //!
 //! No HTTP here: the service and the CLI load a [`Site`] and ask it questions.
