@@ -138,6 +138,7 @@ source "$REPO/docker/smoke/bases.sh"
 make_build_base
 make_runtime_base
 make_chef_base
+rm -rf "$WORK/tools-target"  # cargo-chef's build directory, when make_chef_base built it
 make_crates_image
 make_lb_image
 

@@ -176,7 +176,6 @@ make_chef_base() {
   toolchain_files "$sysroot" | tar -C "$sysroot" -c -T - | tar -C "$ctx/rust" -x
   nice -n 10 cargo install --quiet --locked cargo-chef --version "$CARGO_CHEF_VERSION" \
     --root "$WORK/tools" --target-dir "$WORK/tools-target"
-  rm -rf "$WORK/tools-target"
   cp "$WORK/tools/bin/cargo-chef" "$ctx/"
   cat >"$ctx/Dockerfile" <<EOF
 FROM $BUILD_BASE
