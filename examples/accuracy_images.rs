@@ -253,7 +253,7 @@ fn evaluate(case: &Case, truth: &qrpose::render::GroundTruth, codes: &[DetectedC
         for k in 0..12 {
             e.finder_err.push((fc[k].0 - tf[k].0).norm());
         }
-        let model: Vec<_> = qrpose::detect::finders::finder_model_points(n)
+        let model: Vec<_> = qrpose::detect::refine::finder_model_points(n)
             .iter()
             .map(|m| qrpose::render::marker_point(m.u, m.v, &s.marker, n))
             .collect();

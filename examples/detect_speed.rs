@@ -14,7 +14,7 @@
 #[path = "../benches/common/mod.rs"]
 mod common;
 
-use qrpose::detect::corners::refine_corners;
+use qrpose::detect::refine::refine_corners;
 use qrpose::detect::{Backend, DetectorChoice, decode, find_candidates};
 use std::time::Instant;
 

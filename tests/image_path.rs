@@ -7,11 +7,12 @@ use qrpose::api::image::{ImageLimits, ImageRequest, PointsDto, estimate_image};
 use qrpose::api::problem::ErrorCode;
 use qrpose::detect::{
     Backend, Budget, Detector, DetectorChoice, Effort,
-    corners::{RefineStatus, refine_corners},
+    backends::RxingDetector,
     decode::DecodeLimits,
     decode::decode_gray,
-    detect_codes, detect_within, downscale_half,
-    rxing::RxingDetector,
+    detect_codes, detect_within,
+    raster::downscale_half,
+    refine::{RefineStatus, refine_corners},
 };
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, frames::PixelPoint, marker::Marker};
 use qrpose::render::{EcLevel, Effects, Encoding, Rendered, Scene, render};
@@ -165,7 +166,7 @@ fn auto_merges_codes_and_reads_both_of_two() {
 
 #[test]
 fn merge_keeps_one_candidate_per_symbol_and_prefers_a_decoded_one() {
-    use qrpose::detect::{Candidate, merge_candidates};
+    use qrpose::detect::{Candidate, search::merge_candidates};
     use qrpose::geometry::frames::PixelPoint;
     let quad = |x: f64| {
         [
@@ -612,17 +613,17 @@ fn reread_decodes_a_symbol_through_its_true_module_grid() {
         "{} px per module",
         side_px / n as f64
     );
-    let read = qrpose::detect::reread::reread(&image, &corners, n).expect("reads");
+    let read = qrpose::detect::search::reread(&image, &corners, n).expect("reads");
     assert_eq!(read.payload, b"REREAD-ME");
     assert_eq!(read.text.as_deref(), Some("REREAD-ME"));
     // A grid one module off does not decode into anything.
     let off = corners.map(|p| qrpose::geometry::frames::PixelPoint::new(p.u() + 2.5, p.v()));
-    assert_eq!(qrpose::detect::reread::reread(&image, &off, n), None);
+    assert_eq!(qrpose::detect::search::reread(&image, &off, n), None);
 }
 
 #[test]
 fn sharpening_restores_contrast_of_blurred_modules_and_keeps_flat_areas() {
-    use qrpose::detect::{decode::GrayImage, sharpen};
+    use qrpose::detect::{decode::GrayImage, raster::sharpen};
     // Alternating 2 px bars blurred to low contrast (values 110 and 146), on a flat field.
     let (w, h) = (64, 16);
     let pixels: Vec<u8> = (0..w * h)
@@ -653,7 +654,7 @@ fn sharpening_restores_contrast_of_blurred_modules_and_keeps_flat_areas() {
 #[cfg(feature = "zxing-cpp")]
 mod zxing_cpp_backend {
     use super::*;
-    use qrpose::detect::{Detector, zxing_cpp::ZxingCppDetector};
+    use qrpose::detect::{Detector, backends::ZxingCppDetector};
 
     #[test]
     fn zxing_cpp_reads_a_rendered_code_with_its_version_and_refined_corners() {
@@ -692,7 +693,7 @@ mod zxing_cpp_backend {
         // the fast one reads nothing there, which is why auto falls back to it.
         let r = hd_frame("NEGATIVE", 450.0, 0.9, 15);
         let image = decode_gray(&r.encoded, &DecodeLimits::default()).expect("decodes");
-        let negative = qrpose::detect::invert(&image).expect("inverts");
+        let negative = qrpose::detect::raster::invert(&image).expect("inverts");
         let thorough = ZxingCppDetector::thorough().detect(&negative);
         assert!(
             thorough

@@ -54,17 +54,17 @@ impl Effort {
 }
 
 /// `fast`'s default deadline, fixed part, ms (it runs one pass whatever the deadline).
-pub const FAST_BASE_MS: f64 = 20.0;
+const FAST_BASE_MS: f64 = 20.0;
 /// `fast`'s default deadline, per megapixel, ms.
-pub const FAST_PER_MP_MS: f64 = 10.0;
+const FAST_PER_MP_MS: f64 = 10.0;
 /// `balanced`'s default deadline, fixed part, ms.
-pub const BALANCED_BASE_MS: f64 = 50.0;
+const BALANCED_BASE_MS: f64 = 50.0;
 /// `balanced`'s default deadline, per megapixel, ms.
-pub const BALANCED_PER_MP_MS: f64 = 16.0;
+const BALANCED_PER_MP_MS: f64 = 16.0;
 /// `thorough`'s default deadline, fixed part, ms.
-pub const THOROUGH_BASE_MS: f64 = 200.0;
+const THOROUGH_BASE_MS: f64 = 200.0;
 /// `thorough`'s default deadline, per megapixel, ms.
-pub const THOROUGH_PER_MP_MS: f64 = 100.0;
+const THOROUGH_PER_MP_MS: f64 = 100.0;
 
 /// What detection may spend.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -134,14 +134,15 @@ pub struct PassLog {
 impl PassLog {
     /// A log whose deadline is `max_detect` from now, never cancelled.
     #[must_use]
-    pub fn new(max_detect: Duration) -> Self {
+    #[cfg(test)]
+    pub(crate) fn new(max_detect: Duration) -> Self {
         Self::with_cancel(max_detect, CancelFlag::new())
     }
 
     /// A log whose deadline is `max_detect` from now and that stops once `cancel` is
     /// raised.
     #[must_use]
-    pub fn with_cancel(max_detect: Duration, cancel: CancelFlag) -> Self {
+    pub(crate) fn with_cancel(max_detect: Duration, cancel: CancelFlag) -> Self {
         Self {
             deadline: Instant::now() + max_detect,
             cancel,
@@ -153,7 +154,7 @@ impl PassLog {
 
     /// Whether another pass may start; when not, the log records why work was skipped (the
     /// deadline, or the budget's [`CancelFlag`]).
-    pub fn may_continue(&mut self) -> bool {
+    pub(crate) fn may_continue(&mut self) -> bool {
         if self.cancel.is_cancelled() {
             self.cancelled = true;
             false
@@ -167,7 +168,7 @@ impl PassLog {
 
     /// Runs `pass`, records its time and how many symbols it decoded (counted by
     /// `decoded`), and returns its result.
-    pub fn run<T>(
+    pub(crate) fn run<T>(
         &mut self,
         name: impl Into<String>,
         decoded: impl Fn(&T) -> usize,
@@ -178,7 +179,7 @@ impl PassLog {
 
     /// [`Self::run`] for a pass whose preparation (building its image variant) began at
     /// `started`: the report's time covers both.
-    pub fn run_since<T>(
+    pub(crate) fn run_since<T>(
         &mut self,
         started: Instant,
         name: impl Into<String>,

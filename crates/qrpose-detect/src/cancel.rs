@@ -1,6 +1,6 @@
 //! Cancelling detection from outside: whoever waits for a detection (the service's worker
 //! queue, for a request that timed out or whose client went away) raises a [`CancelFlag`];
-//! detection checks it before every pass ([`crate::budget::PassLog::may_continue`]) and
+//! detection checks it before every pass (the budget's [`crate::PassLog`]) and
 //! stops, so the worker is free one pass later instead of when every pass has run.
 //!
 //! The flag travels in the detection's [`crate::Budget`], beside its deadline: whoever

@@ -4,7 +4,7 @@
 //! The one place where this workspace catches unwinding panics from code it does not
 //! control: the image decoders ([`crate::decode`]), the detector backends (rqrr's
 //! `detect_grids`, upstream issue #54; rxing; zxing-cpp's bindings), rqrr's decoder in
-//! [`crate::search::reread`], and the HTTP service's estimation workers. Each site decides what a
+//! [`crate::search::reread()`], and the HTTP service's estimation workers. Each site decides what a
 //! panic means there (nothing found, a corrupt image, a 500).
 //!
 //! The closure runs under [`std::panic::AssertUnwindSafe`]: callers assert that nothing

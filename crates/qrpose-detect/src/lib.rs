@@ -1,22 +1,26 @@
 //! Image to QR codes: decode the bytes, find every symbol with one or more backends, read
 //! it, and refine its corners to a fraction of a pixel. No async, no HTTP.
 //!
+//! The entry points are here: [`detect_within`] finds, reads and refines every code of an
+//! image within a [`Budget`] (effort, deadline, [`CancelFlag`]) and reports the passes that
+//! ran ([`PassLog`]); [`detect_codes`] does so at the default budget, [`find_candidates`]
+//! stops before refinement; [`pipeline::locate_markers`] adds each code's pose.
+//!
 //! The crate is grouped by what each part does:
 //!
-//! | module | what it owns |
-//! |---|---|
-//! | [`decode`] | bytes → [`raster::GrayImage`], within [`decode::DecodeLimits`] |
-//! | [`raster`] | the grey image and the whole-image filters (sharpen, blur, rescale) |
-//! | [`backends`] | the detector libraries behind [`Detector`]: rqrr, rxing (with this crate's rewrites of rxing's binarisers and finder search), zxing-cpp with the `zxing-cpp` feature |
-//! | [`search`] | the `auto` strategy: whole-frame reads, then closer looks only where a code may be (regions, finder pairs), merging, re-reading through the module grid |
-//! | [`refine`] | sub-pixel corners and finder corners from edge profiles and the module grid |
-//! | [`budget`], [`cancel`] | what detection may spend: effort, deadline, cancellation, and the log of the passes that ran |
-//! | [`pipeline`] | photo to poses: detection, then each code's pose at its own size |
-//! | [`contain`] | panics of third-party code turned into values |
-//!
-//! The entry points are here: [`detect_within`] (every code of an image within a
-//! [`Budget`]), [`detect_codes`] and [`find_candidates`]; [`pipeline::locate_markers`]
-//! adds the poses.
+//! - [`decode`]: bytes → [`decode::GrayImage`], within [`decode::DecodeLimits`].
+//! - [`raster`]: the grey image and the whole-image filters (sharpen and blur, contrast
+//!   stretch, negative, double and half scale).
+//! - [`backends`]: the detector libraries behind [`Detector`] (rqrr, rxing, and zxing-cpp
+//!   with the `zxing-cpp` cargo feature), chosen by [`DetectorChoice`]; beside rxing's,
+//!   this crate's bit-for-bit rewrites of rxing's binarisers and finder-pattern search.
+//! - [`search`]: the `auto` strategy (whole-frame reads, then closer looks only where a
+//!   code may be), merging by position, reading again through the refined module grid.
+//! - [`refine`]: sub-pixel corners and finder corners from edge profiles and the module
+//!   grid, whatever the backend.
+//! - [`budget`], [`cancel`]: what detection may spend, and the log of what it did.
+//! - [`pipeline`]: photo to poses, each code solved once at its own size.
+//! - [`contain`]: panics of third-party code turned into values.
 //!
 //! Conventions: corners in `"qr"` order (top-left, top-right, bottom-right, bottom-left of
 //! the symbol), pixels with integer pixel centres (docs/conventions.md).
@@ -35,27 +39,21 @@ pub mod raster;
 pub mod refine;
 pub mod search;
 
-pub use backends::{
-    Backend, Candidate, DetectError, Detector, DetectorChoice, auto_order, detector_for,
-};
+pub use backends::{Backend, Candidate, DetectError, Detector, DetectorChoice};
 pub use budget::{Budget, Effort, PassLog, PassReport};
-pub use raster::filters::{downscale_half, invert, sharpen, stretch_contrast, upscale_double};
-pub use search::auto::{
-    DENOISE_SIGMA_PX, HALF_SCALE_FIRST_MIN_SIDE_PX, SHARPEN_AMOUNT, SHARPEN_DOUBLE_AMOUNT,
-    SHARPEN_DOUBLE_SIGMA_PX, SHARPEN_SIGMA_PX, UPSCALE_MAX_SIDE_PX,
-};
-pub use search::merge::merge_candidates;
-// The paths of the flat layout, until the callers move to the grouped one.
-#[cfg(feature = "zxing-cpp")]
-pub use backends::zxing_cpp;
-pub use backends::{rqrr, rxing};
-pub use raster::{filters, gray};
-pub use refine::{corners, finders, homography, profile};
-pub use search::{pairs, region, reread};
+pub use cancel::CancelFlag;
 
+/// The corner-refinement results under their path of before the grouping: a caller with
+/// uncommitted work still names them so. Use [`refine`].
+#[doc(hidden)]
+pub mod corners {
+    pub use crate::refine::{RefineStatus, Refinement};
+}
+
+use backends::detector_for;
 use qrpose_core::geometry::frames::PixelPoint;
 use raster::GrayImage;
-use refine::corners::{RefineStatus, refine_corners};
+use refine::{RefineStatus, refine_corners};
 use search::merge::reread_undecoded;
 
 /// One detected symbol with refined corners.
@@ -64,7 +62,7 @@ pub struct DetectedCode {
     /// What the backend reported.
     pub candidate: Candidate,
     /// Refined corners and finder corners.
-    pub refinement: refine::corners::Refinement,
+    pub refinement: refine::Refinement,
 }
 
 impl DetectedCode {
@@ -94,7 +92,7 @@ pub fn find_candidates(
 
 /// The candidates of `choice` at `effort`, passes recorded in `log` (whose deadline bounds
 /// `auto`). A single backend runs one pass and reads what it found but could not decode
-/// again through the refined module grid ([`search::reread`]).
+/// again through the refined module grid ([`search::reread()`]).
 fn find_logged(
     image: &GrayImage,
     choice: DetectorChoice,

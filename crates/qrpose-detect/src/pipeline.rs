@@ -16,7 +16,7 @@
 //! distortion the detector's corners are used as they are.
 
 use crate::refine::corners::{Lens, RefineStatus, refine_corners_through};
-use crate::refine::finders::finder_marker_points;
+use crate::refine::finder_marker_points;
 use crate::{
     Budget, DetectError, DetectedCode, DetectorChoice, PassReport, decode::GrayImage, detect_within,
 };

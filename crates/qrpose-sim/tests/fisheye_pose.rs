@@ -9,7 +9,7 @@
 //!
 //! From the true corners the fisheye pose is exact (first test): the lens model is exact.
 //! A fisheye bows the symbol's straight sides, so the pipeline refines a distorting
-//! camera's corners through its lens (`qrpose_detect::corners::refine_corners_through`).
+//! camera's corners through its lens (`qrpose_detect::refine::refine_corners_through`).
 //! Measured (this file, clean renders; largest corner error of a code, then its position
 //! and rotation error, over the five codes): pinhole 0.04-0.15 px, 0.015-0.041 mm,
 //! 0.05-0.19°; fisheye 0.03-0.11 px, 0.007-0.070 mm, 0.09-0.21°. Refined with straight
@@ -23,8 +23,8 @@ use qrpose_core::geometry::euler::{EulerXyz, angle_between};
 use qrpose_core::geometry::frames::PixelPoint;
 use qrpose_core::geometry::marker::{CornerOrder, Marker};
 use qrpose_core::geometry::quad::ImageQuad;
-use qrpose_detect::corners::{refine_corners, refine_corners_through};
 use qrpose_detect::pipeline::{Options, Setup, locate_markers};
+use qrpose_detect::refine::{refine_corners, refine_corners_through};
 use qrpose_detect::{Budget, Effort, detect_within};
 use qrpose_sim::render::{EcLevel, Effects, Rendered, Scene, render};
 use std::time::Duration;

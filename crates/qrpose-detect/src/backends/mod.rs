@@ -1,14 +1,22 @@
 //! The backend registry and the types every backend shares: which libraries there are
 //! ([`Backend`], [`DetectorChoice`]), what one reports ([`Candidate`]), the interface each
-//! implements ([`Detector`]), and which detector serves a backend ([`detector_for`],
-//! [`auto_order`]).
+//! implements ([`Detector`]), and which detector serves a backend ([`detector_for`]; `auto`
+//! tries them best first, `auto_order`). The detectors themselves ([`RqrrDetector`],
+//! [`RxingDetector`], `ZxingCppDetector` with the `zxing-cpp` feature) live in one module
+//! each; rxing's has beside it this crate's bit-for-bit rewrites of rxing's binarisers and
+//! finder-pattern search.
 
-pub mod rqrr;
-pub mod rxing;
+pub(crate) mod rqrr;
+pub(crate) mod rxing;
 #[cfg(feature = "zxing-cpp")]
-pub mod zxing_cpp;
+pub(crate) mod zxing_cpp;
 
-use crate::raster::gray::GrayImage;
+pub use rqrr::RqrrDetector;
+pub use rxing::RxingDetector;
+#[cfg(feature = "zxing-cpp")]
+pub use zxing_cpp::ZxingCppDetector;
+
+use crate::raster::GrayImage;
 use qrpose_core::geometry::frames::PixelPoint;
 use thiserror::Error;
 
@@ -104,7 +112,7 @@ pub fn detector_for(backend: Backend) -> Result<Box<dyn Detector>, DetectError> 
 }
 
 /// The backends `auto` tries, best first.
-pub fn auto_order() -> Vec<Backend> {
+pub(crate) fn auto_order() -> Vec<Backend> {
     [Backend::ZxingCpp, Backend::Rxing, Backend::Rqrr]
         .into_iter()
         .filter(|b| b.is_built())

@@ -20,7 +20,10 @@ use qrpose_core::geometry::frames::PixelPoint;
 pub struct RqrrDetector;
 
 /// Corners in qr order from rqrr's bounds of a grid of `n` modules, moved one module in.
-pub fn corners_from_rqrr_bounds(bounds: &[PixelPoint; 4], n: usize) -> Option<[PixelPoint; 4]> {
+pub(crate) fn corners_from_rqrr_bounds(
+    bounds: &[PixelPoint; 4],
+    n: usize,
+) -> Option<[PixelPoint; 4]> {
     let n = n as f64;
     Some(Homography::from_corners(bounds, n + 1.0)?.corners(n))
 }

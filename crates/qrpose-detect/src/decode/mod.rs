@@ -12,7 +12,7 @@
 //! decode. Every decoder runs inside [`crate::contain::contain`], so a decoder bug on
 //! hostile input is a [`DecodeError::Corrupt`], not a crash.
 //!
-//! The raster type, [`GrayImage`], lives in [`crate::raster::gray`] (re-exported here).
+//! The raster type, [`GrayImage`], lives in [`crate::raster`] (re-exported here).
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
@@ -21,7 +21,7 @@
 mod jpeg;
 mod png;
 
-pub use crate::raster::gray::GrayImage;
+pub use crate::raster::GrayImage;
 
 use crate::contain::contain;
 use image::ImageDecoder;

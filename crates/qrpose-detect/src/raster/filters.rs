@@ -73,7 +73,7 @@ pub fn gaussian_blur_plane(
 }
 
 /// The normalised Gaussian kernel of σ `sigma_px`: 2r + 1 taps, r = ⌈3σ⌉ (at least 1).
-pub fn gaussian_kernel(sigma_px: f64) -> Vec<f64> {
+fn gaussian_kernel(sigma_px: f64) -> Vec<f64> {
     let radius = (3.0 * sigma_px).ceil().max(1.0) as i64;
     let raw: Vec<f64> = (-radius..=radius)
         .map(|k| (-0.5 * (k as f64 / sigma_px).powi(2)).exp())

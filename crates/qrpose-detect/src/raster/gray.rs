@@ -3,7 +3,8 @@
 //!
 //! Pixel (u, v) covers [u − 0.5, u + 0.5] × [v − 0.5, v + 0.5], so pixel centres lie at
 //! integer coordinates (docs/conventions.md). [`crate::decode`] makes one from image bytes;
-//! [`crate::raster::filters`] transforms one; the detectors and [`crate::refine::corners`] read one.
+//! the filters of [`crate::raster`] transform one; the detectors and
+//! [`crate::refine::refine_corners`] read one.
 
 // Pixel indices are floats floored inside the image before the cast, so truncation cannot
 // occur.

@@ -1,12 +1,16 @@
-//! The raster every stage works on: [`GrayImage`] (module `gray`: 8-bit grey, integer pixel
-//! access, bilinear sampling at sub-pixel positions) and the whole-image transforms of the
-//! workspace (module `filters`: unsharp mask and Gaussian blur, contrast stretch, negative,
-//! double and half scale).
+//! The raster every stage works on: [`GrayImage`] (an 8-bit grey image with integer pixel
+//! access and bilinear sampling at sub-pixel positions) and the whole-image transforms of
+//! the workspace: [`sharpen`] (an unsharp mask, or with amount −1 the Gaussian blur
+//! itself), [`stretch_contrast`], [`invert`], [`upscale_double`], [`downscale_half`], and
+//! the renderer's lens blur on a floating-point plane ([`gaussian_blur_plane`]).
 //!
 //! Pixel (u, v) covers [u − 0.5, u + 0.5] × [v − 0.5, v + 0.5], so pixel centres lie at
 //! integer coordinates (docs/conventions.md).
 
-pub mod filters;
-pub mod gray;
+mod filters;
+mod gray;
 
+pub use filters::{
+    downscale_half, gaussian_blur_plane, invert, sharpen, stretch_contrast, upscale_double,
+};
 pub use gray::GrayImage;

@@ -11,7 +11,7 @@ use nalgebra::Point3;
 use qrpose_core::geometry::{frames::MarkerPoint, marker::Marker};
 
 /// Side of a finder pattern, modules.
-pub const FINDER_MODULES: f64 = 7.0;
+pub(crate) const FINDER_MODULES: f64 = 7.0;
 
 /// The twelve finder corners in module coordinates of an `n`-module symbol.
 pub fn finder_model_points(n: usize) -> [ModulePoint; 12] {

@@ -26,27 +26,27 @@ impl ModulePoint {
 
 /// x_image ~ H · (u, v, 1)ᵀ.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Homography {
+pub(crate) struct Homography {
     h: Matrix3<f64>,
     inv: Matrix3<f64>,
 }
 
 impl Homography {
     /// From a matrix; `None` when it is singular or not finite.
-    pub fn from_matrix(h: Matrix3<f64>) -> Option<Self> {
+    pub(crate) fn from_matrix(h: Matrix3<f64>) -> Option<Self> {
         let inv = h.try_inverse()?;
         (h.iter().all(|x| x.is_finite()) && inv.iter().all(|x| x.is_finite()))
             .then_some(Self { h, inv })
     }
 
     /// The matrix.
-    pub fn matrix(&self) -> &Matrix3<f64> {
+    pub(crate) fn matrix(&self) -> &Matrix3<f64> {
         &self.h
     }
 
     /// Fits the homography mapping `model` onto `image` (≥ 4 pairs) by the normalised DLT;
     /// `None` when the points are degenerate.
-    pub fn fit(model: &[ModulePoint], image: &[PixelPoint]) -> Option<Self> {
+    pub(crate) fn fit(model: &[ModulePoint], image: &[PixelPoint]) -> Option<Self> {
         if model.len() < 4 || model.len() != image.len() {
             return None;
         }
@@ -77,30 +77,31 @@ impl Homography {
 
     /// The homography taking the symbol's corners (0, 0), (n, 0), (n, n), (0, n) onto four
     /// image corners in qr order (TL, TR, BR, BL).
-    pub fn from_corners(corners_qr: &[PixelPoint; 4], n_modules: f64) -> Option<Self> {
+    pub(crate) fn from_corners(corners_qr: &[PixelPoint; 4], n_modules: f64) -> Option<Self> {
         Self::fit(&symbol_corners(n_modules), corners_qr)
     }
 
     /// The image of the symbol's corners (0, 0), (n, 0), (n, n), (0, n), qr order: the
     /// inverse of [`Homography::from_corners`].
-    pub fn corners(&self, n_modules: f64) -> [PixelPoint; 4] {
+    pub(crate) fn corners(&self, n_modules: f64) -> [PixelPoint; 4] {
         symbol_corners(n_modules).map(|m| self.map(m))
     }
 
     /// Maps a module point into the image.
-    pub fn map(&self, p: ModulePoint) -> PixelPoint {
+    pub(crate) fn map(&self, p: ModulePoint) -> PixelPoint {
         let x = self.h * Vector3::new(p.u, p.v, 1.0);
         PixelPoint::new(x.x / x.z, x.y / x.z)
     }
 
     /// Maps an image point back to module coordinates.
-    pub fn unmap(&self, p: PixelPoint) -> ModulePoint {
+    #[cfg(test)]
+    pub(crate) fn unmap(&self, p: PixelPoint) -> ModulePoint {
         let x = self.inv * Vector3::new(p.u(), p.v(), 1.0);
         ModulePoint::new(x.x / x.z, x.y / x.z)
     }
 
     /// Local scale at a module point: image pixels per module along u and along v.
-    pub fn px_per_module(&self, p: ModulePoint) -> (f64, f64) {
+    pub(crate) fn px_per_module(&self, p: ModulePoint) -> (f64, f64) {
         let a = self.map(p);
         let du = self.map(ModulePoint::new(p.u + 1e-3, p.v));
         let dv = self.map(ModulePoint::new(p.u, p.v + 1e-3));

@@ -4,7 +4,7 @@
 //! their refined module grid first ([`reread_undecoded`]).
 
 use crate::Candidate;
-use crate::raster::gray::GrayImage;
+use crate::raster::GrayImage;
 use crate::refine::corners::{RefineStatus, refine_corners};
 use crate::search::reread;
 use qrpose_core::geometry::frames::PixelPoint;

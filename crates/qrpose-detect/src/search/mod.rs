@@ -1,14 +1,20 @@
-//! Where the codes are: the `auto` strategy (module `auto`) that reads the whole frame and
-//! then looks closer only where a code may be, within a [`crate::Budget`].
+//! Where the codes are: the `auto` strategy that reads the whole frame and then looks
+//! closer only where a code may be, within a [`crate::Budget`].
 //!
-//! - `auto`: the passes, their order and their constants;
-//! - [`region`]: the places of unread finder-pattern triples, and the crops read there;
-//! - [`pairs`]: the places of lone finder patterns and pairs of them (small blurred codes);
-//! - `merge`: the results of several passes merged by position;
-//! - [`reread`]: a found-but-unread symbol read again through its refined module grid.
+//! - module `auto`: the passes of [`crate::DetectorChoice::Auto`], their order and their
+//!   constants;
+//! - module `region`: the places of unread finder-pattern triples, and the crops read there;
+//! - module `pairs`: the places of lone finder patterns and pairs of them (small blurred
+//!   codes);
+//! - module `merge`: the results of several passes merged by position ([`merge_candidates`]);
+//! - module `reread`: a found-but-unread symbol read again through its refined module grid
+//!   ([`reread()`]).
 
 pub(crate) mod auto;
 pub(crate) mod merge;
-pub mod pairs;
-pub mod region;
-pub mod reread;
+pub(crate) mod pairs;
+pub(crate) mod region;
+pub(crate) mod reread;
+
+pub use merge::merge_candidates;
+pub use reread::{Reread, reread};

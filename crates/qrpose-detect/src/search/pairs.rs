@@ -15,30 +15,30 @@ use qrpose_core::geometry::frames::PixelPoint;
 
 /// A finder pattern that a read found but used in no decoded symbol.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FinderPattern {
+pub(crate) struct FinderPattern {
     /// Its centre, px.
-    pub centre: PixelPoint,
+    pub(crate) centre: PixelPoint,
     /// Its width across, px (7 modules).
-    pub size_px: f64,
+    pub(crate) size_px: f64,
 }
 
 /// Two finder patterns of one small code differ in size by at most this factor (tilt, and a
 /// binariser that erodes one more than the other).
-pub const PAIR_MAX_SIZE_RATIO: f64 = 1.25;
+pub(crate) const PAIR_MAX_SIZE_RATIO: f64 = 1.25;
 /// Closest pair, in finder-pattern widths: adjacent finders of a version 1 code are 2 widths
 /// apart (14 modules), and tilt shortens that.
-pub const PAIR_MIN_SPACING: f64 = 1.5;
+pub(crate) const PAIR_MIN_SPACING: f64 = 1.5;
 /// Farthest pair, in finder-pattern widths: adjacent finders of a version 4 code (33
 /// modules) are 26 / 7 ≈ 3.7 widths apart, diagonal ones of a version 2 code 18 √2 / 7 ≈
 /// 3.6. The codes this is for are small and low-version (a code that loses its finder rings
 /// to the blur has 2-3 px per module, so a higher version would be a large code); on the
 /// sharpened noise of frames without a code, spurious pairs are mostly farther apart
 /// (measured on the BoofCV no-code crops, docs/detection.md).
-pub const PAIR_MAX_SPACING: f64 = 4.0;
+pub(crate) const PAIR_MAX_SPACING: f64 = 4.0;
 /// Farthest pair, px: the pair read is for small codes (2-3 px per module, versions 1-4:
 /// adjacent finders 34-78 px apart), whose crops are cheap; a region is about three times
 /// this long.
-pub const PAIR_MAX_DISTANCE_PX: f64 = 80.0;
+pub(crate) const PAIR_MAX_DISTANCE_PX: f64 = 80.0;
 
 /// Whether `a` and `b` could be two finder patterns of one small code.
 fn plausible_pair(a: &FinderPattern, b: &FinderPattern) -> bool {
@@ -79,7 +79,7 @@ fn on_read_symbol(p: &PixelPoint, found: &[Candidate]) -> bool {
 /// The regions of every plausible pair among `patterns` whose patterns are on no symbol of
 /// `found` already read, in the order of the patterns.
 #[must_use]
-pub fn pair_regions(patterns: &[FinderPattern], found: &[Candidate]) -> Vec<Region> {
+pub(crate) fn pair_regions(patterns: &[FinderPattern], found: &[Candidate]) -> Vec<Region> {
     let lone: Vec<&FinderPattern> = patterns
         .iter()
         .filter(|p| !on_read_symbol(&p.centre, found))
@@ -97,17 +97,17 @@ pub fn pair_regions(patterns: &[FinderPattern], found: &[Candidate]) -> Vec<Regi
 
 /// Lone finder patterns up to this wide get a crop of their own (`auto`'s lone-pattern
 /// reads), px: 7 modules of 2.5 px, the codes whose other finder patterns blur away.
-pub const LONE_MAX_SIZE_PX: f64 = 18.0;
+pub(crate) const LONE_MAX_SIZE_PX: f64 = 18.0;
 /// Reach of a lone pattern's region from its centre, in finder widths: the far corner of a
 /// version 2 code (25 modules) is 21.5 modules (3.07 widths) from a finder's centre along
 /// each axis, whichever of its three finders the pattern is.
-pub const LONE_REACH: f64 = 3.1;
+pub(crate) const LONE_REACH: f64 = 3.1;
 
 /// The regions of the small patterns of `patterns` (at most [`LONE_MAX_SIZE_PX`] wide) that
 /// lie on no symbol of `found` already read: each covers a code of versions 1-2 of which
 /// the pattern is any one finder, in the order of the patterns.
 #[must_use]
-pub fn lone_regions(patterns: &[FinderPattern], found: &[Candidate]) -> Vec<Region> {
+pub(crate) fn lone_regions(patterns: &[FinderPattern], found: &[Candidate]) -> Vec<Region> {
     patterns
         .iter()
         .filter(|p| p.size_px > 0.0 && p.size_px <= LONE_MAX_SIZE_PX)

@@ -11,31 +11,31 @@
 #![allow(clippy::cast_possible_truncation)]
 
 use crate::Candidate;
-use crate::raster::gray::GrayImage;
+use crate::raster::GrayImage;
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// An axis-aligned box of the image where a symbol may be, px.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Region {
+pub(crate) struct Region {
     /// Left edge, px.
-    pub lo_u: f64,
+    pub(crate) lo_u: f64,
     /// Top edge, px.
-    pub lo_v: f64,
+    pub(crate) lo_v: f64,
     /// Right edge, px.
-    pub hi_u: f64,
+    pub(crate) hi_u: f64,
     /// Bottom edge, px.
-    pub hi_v: f64,
+    pub(crate) hi_v: f64,
 }
 
 /// At most this many unread regions get further effort in one image: clutter can produce
 /// dozens of finder-like triples, and each costs a few crop passes.
-pub const MAX_REGIONS: usize = 16;
+pub(crate) const MAX_REGIONS: usize = 16;
 
 impl Region {
     /// The region of a finder-pattern triple: centres `tl`, `tr`, `bl` (px) and the finder
     /// patterns' size `finder_px` (7 modules).
     #[must_use]
-    pub fn from_finder_centres(
+    pub(crate) fn from_finder_centres(
         tl: PixelPoint,
         tr: PixelPoint,
         bl: PixelPoint,
@@ -47,7 +47,7 @@ impl Region {
 
     /// The bounding box of `points` widened by `margin_px` on every side.
     #[must_use]
-    pub fn around(points: &[PixelPoint], margin_px: f64) -> Option<Self> {
+    pub(crate) fn around(points: &[PixelPoint], margin_px: f64) -> Option<Self> {
         let mut r = Self {
             lo_u: f64::INFINITY,
             lo_v: f64::INFINITY,
@@ -69,7 +69,7 @@ impl Region {
     /// The same region in the source image of a copy scaled by `scale` source px per copy px
     /// (pixel centres scale about −0.5).
     #[must_use]
-    pub fn rescaled(self, scale: f64) -> Self {
+    pub(crate) fn rescaled(self, scale: f64) -> Self {
         let s = |x: f64| (x + 0.5) * scale - 0.5;
         Self {
             lo_u: s(self.lo_u),
@@ -105,14 +105,14 @@ const SAME_PLACE_OVERLAP: f64 = 0.5;
 
 /// Whether two regions are the same place (overlapping by more than half of the smaller).
 #[must_use]
-pub fn same_place(a: &Region, b: &Region) -> bool {
+pub(crate) fn same_place(a: &Region, b: &Region) -> bool {
     a.overlap(b) > SAME_PLACE_OVERLAP
 }
 
 /// The regions worth more effort: not on a symbol already read (`found`, decoded ones),
 /// and one per place, largest first, at most [`MAX_REGIONS`].
 #[must_use]
-pub fn unread_regions(mut regions: Vec<Region>, found: &[Candidate]) -> Vec<Region> {
+pub(crate) fn unread_regions(mut regions: Vec<Region>, found: &[Candidate]) -> Vec<Region> {
     regions.sort_by(|a, b| b.area().total_cmp(&a.area()));
     let read: Vec<Region> = found
         .iter()
@@ -143,9 +143,9 @@ const CROP_MARGIN_SHARE: f64 = 0.25;
 const CROP_MARGIN_PX: f64 = 8.0;
 
 /// A rectangle of an image, copied out, with its offset in the source.
-pub struct Crop {
+pub(crate) struct Crop {
     /// The pixels; `None` when the rectangle is empty.
-    pub image: Option<GrayImage>,
+    pub(crate) image: Option<GrayImage>,
     x0: usize,
     y0: usize,
 }
@@ -153,13 +153,13 @@ pub struct Crop {
 impl Crop {
     /// The bounding box of `corners_px` widened by the crop margins, clamped to the image.
     #[must_use]
-    pub fn around(image: &GrayImage, corners_px: &[PixelPoint; 4]) -> Option<Self> {
+    pub(crate) fn around(image: &GrayImage, corners_px: &[PixelPoint; 4]) -> Option<Self> {
         Self::of_region(image, &Region::around(corners_px, 0.0)?)
     }
 
     /// `region` widened by the crop margins, clamped to the image.
     #[must_use]
-    pub fn of_region(image: &GrayImage, region: &Region) -> Option<Self> {
+    pub(crate) fn of_region(image: &GrayImage, region: &Region) -> Option<Self> {
         let margin = CROP_MARGIN_SHARE * (region.hi_u - region.lo_u).max(region.hi_v - region.lo_v)
             + CROP_MARGIN_PX;
         Self::with_margin(image, region, margin)
@@ -167,7 +167,7 @@ impl Crop {
 
     /// `region` widened by `margin` px on every side, clamped to the image.
     #[must_use]
-    pub fn with_margin(image: &GrayImage, region: &Region, margin: f64) -> Option<Self> {
+    pub(crate) fn with_margin(image: &GrayImage, region: &Region, margin: f64) -> Option<Self> {
         let max_u = (image.width() - 1) as f64;
         let max_v = (image.height() - 1) as f64;
         let x0 = (region.lo_u - margin).clamp(0.0, max_u).floor() as usize;
@@ -188,13 +188,13 @@ impl Crop {
 
     /// A source pixel position in the crop's pixels.
     #[must_use]
-    pub fn to_crop(&self, p: &PixelPoint) -> PixelPoint {
+    pub(crate) fn to_crop(&self, p: &PixelPoint) -> PixelPoint {
         PixelPoint::new(p.u() - self.x0 as f64, p.v() - self.y0 as f64)
     }
 
     /// A candidate found in the crop, in source pixels.
     #[must_use]
-    pub fn to_source(&self, mut c: Candidate) -> Candidate {
+    pub(crate) fn to_source(&self, mut c: Candidate) -> Candidate {
         let (dx, dy) = (self.x0 as f64, self.y0 as f64);
         c.corners_px = c
             .corners_px

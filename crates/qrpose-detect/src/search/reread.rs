@@ -17,13 +17,13 @@
 
 use crate::contain::contain;
 use crate::raster::GrayImage;
-use crate::raster::filters::sharpen;
+use crate::raster::sharpen;
 use crate::refine::homography::{Homography, ModulePoint};
 use crate::search::region::{Crop, Region};
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// Side of the square window of module centres whose mean is a module's threshold.
-pub const LOCAL_WINDOW_MODULES: usize = 7;
+pub(crate) const LOCAL_WINDOW_MODULES: usize = 7;
 /// Weights of the local mean in the thresholds tried, in order (the rest is the global
 /// mid-grey).
 const LOCAL_WEIGHTS: [f64; 3] = [0.5, 0.0, 1.0];
@@ -153,9 +153,9 @@ fn read_values(values: &[f64], n: usize) -> Option<Reread> {
 }
 
 /// Unsharp mask of the second sampling ([`sharpened_patch`]): Gaussian σ, px.
-pub const REREAD_SHARPEN_SIGMA_PX: f64 = 1.0;
+pub(crate) const REREAD_SHARPEN_SIGMA_PX: f64 = 1.0;
 /// Unsharp mask of the second sampling: amount.
-pub const REREAD_SHARPEN_AMOUNT: f64 = 2.0;
+pub(crate) const REREAD_SHARPEN_AMOUNT: f64 = 2.0;
 /// Margin of the sharpened patch around the corners' box, px (the mask's reach).
 const PATCH_MARGIN_PX: f64 = 4.0;
 

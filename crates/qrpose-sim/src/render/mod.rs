@@ -30,7 +30,7 @@
 //! ground truth and the overlap helpers in module `scene`; the random scene generator in
 //! module `random`; the symbol's modules and the ground truth in module `symbol`; the
 //! rasteriser (background, lighting, supersampled symbols, lens blur by
-//! [`qrpose_detect::filters::gaussian_blur_plane`], noise, quantisation) in module `raster`;
+//! [`qrpose_detect::raster::gaussian_blur_plane`], noise, quantisation) in module `raster`;
 //! the file encoding in module `encoding`. Every public item is re-exported here, but for
 //! rendered video: a camera moving past codes placed in a world frame, frame by frame, with
 //! the truth of every code in view, in the public module [`sequence`] (docs/rendering.md).

@@ -1,7 +1,7 @@
 //! The rasteriser: a scene and its effects to pixels ([`render_scene`]; [`render`] is the
 //! same with one code). Background clutter and uneven lighting, each code supersampled
 //! through the camera's distortion (later codes over earlier ones), then the lens blur
-//! ([`qrpose_detect::filters::gaussian_blur_plane`], on the `f64` plane), sensor noise and
+//! ([`qrpose_detect::raster::gaussian_blur_plane`], on the `f64` plane), sensor noise and
 //! 8-bit quantisation; the file is written by [`super::encode`]. The pieces (a code ready to
 //! draw, the lighting, the plane over any background, the finishing effects) are shared
 //! with [`super::sequence`], whose frames have codes partly out of view, a wall fixed to the
@@ -21,7 +21,7 @@ use nalgebra::{Point3, Vector3};
 use qrpose_core::geometry::camera::Camera;
 use qrpose_core::geometry::frames::{CameraPoint, CameraToMarker, PixelPoint};
 use qrpose_detect::decode::GrayImage;
-use qrpose_detect::filters::gaussian_blur_plane;
+use qrpose_detect::raster::gaussian_blur_plane;
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use rand_distr::{Distribution, Normal};
 

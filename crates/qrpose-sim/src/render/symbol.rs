@@ -5,8 +5,7 @@
 
 use super::{CodePlacement, EcLevel, GroundTruth, RenderError, Scene};
 use qrpose_core::geometry::{camera::Camera, frames::MarkerPoint, marker::Marker};
-use qrpose_detect::finders::{finder_model_points, marker_point_of_module};
-use qrpose_detect::homography::ModulePoint;
+use qrpose_detect::refine::{ModulePoint, finder_model_points, marker_point_of_module};
 
 /// The module matrix of a payload: (N, row-major dark flags).
 ///

@@ -1,8 +1,9 @@
 //! rxing binarisers whose bit matrix is made at once ([`Precomputed`]): rxing's hybrid
 //! (local) and global-histogram algorithms, reimplemented bit for bit but thresholding a
 //! row and packing a word at a time where rxing sets one bit at a time
-//! ([`super::hybrid_binarizer::local_binarizer`], [`super::global_binarizer::global_binarizer`]). Row
-//! queries (1-D readers) go to rxing's global-histogram binariser.
+//! ([`super::hybrid_binarizer::local_binarizer`],
+//! [`super::global_binarizer::global_binarizer`]). Row queries (1-D readers) go to rxing's
+//! global-histogram binariser.
 
 use rxing::common::{BitArray, BitMatrix, GlobalHistogramBinarizer, LineOrientation};
 use rxing::{Binarizer, LuminanceSource};
@@ -10,10 +11,10 @@ use std::borrow::Cow;
 
 /// A bit matrix of a grey image (`pixels`, `width`, `height`); `None` where the algorithm
 /// gives none (too little contrast, an empty image).
-pub type Threshold = fn(&[u8], usize, usize) -> Option<BitMatrix>;
+pub(crate) type Threshold = fn(&[u8], usize, usize) -> Option<BitMatrix>;
 
 /// A binariser whose bit matrix was made by a [`Threshold`] when it was built.
-pub struct Precomputed<LS: LuminanceSource> {
+pub(crate) struct Precomputed<LS: LuminanceSource> {
     ghb: GlobalHistogramBinarizer<LS>,
     matrix: Option<BitMatrix>,
     threshold: Threshold,
@@ -21,7 +22,7 @@ pub struct Precomputed<LS: LuminanceSource> {
 
 impl<LS: LuminanceSource> Precomputed<LS> {
     /// Binarises `source` with `threshold` at once.
-    pub fn new(source: LS, threshold: Threshold) -> Self {
+    pub(crate) fn new(source: LS, threshold: Threshold) -> Self {
         let (width, height) = (source.get_width(), source.get_height());
         let matrix = threshold(&source.get_matrix(), width, height);
         Self {

@@ -27,7 +27,7 @@ const ROW_STEP: usize = 3;
 
 /// The finder patterns of `image`, as `FindFinderPatterns(image, true, 0)` returns them.
 /// Rows wider than a run length can count (65 535 px) go to rxing's own search.
-pub fn find_finder_patterns(image: &BitMatrix) -> Vec<ConcentricPattern> {
+pub(crate) fn find_finder_patterns(image: &BitMatrix) -> Vec<ConcentricPattern> {
     let width = usize::try_from(image.getWidth()).unwrap_or(usize::MAX);
     let height = usize::try_from(image.getHeight()).unwrap_or(0);
     if width > usize::from(PatternType::MAX) {
@@ -249,7 +249,7 @@ mod tests {
     fn finds_what_rxing_finds_on_photos() {
         use crate::backends::rxing::global_binarizer::global_binarizer;
         use crate::decode::{DecodeLimits, decode_gray};
-        use crate::raster::filters::downscale_half;
+        use crate::raster::downscale_half;
         let root = std::env::var("QRPOSE_FINDER_PHOTOS").expect("QRPOSE_FINDER_PHOTOS");
         let mut stack = vec![std::path::PathBuf::from(root)];
         let (mut photos, mut patterns) = (0, 0);

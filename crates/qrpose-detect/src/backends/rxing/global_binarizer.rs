@@ -17,7 +17,7 @@ const LUMINANCE_SHIFT: usize = 8 - LUMINANCE_BITS;
 const LUMINANCE_BUCKETS: usize = 1 << LUMINANCE_BITS;
 
 /// rxing's `GlobalHistogramBinarizer` with the bit matrix built at once.
-pub fn global_binarizer<LS: LuminanceSource>(source: LS) -> Precomputed<LS> {
+pub(crate) fn global_binarizer<LS: LuminanceSource>(source: LS) -> Precomputed<LS> {
     Precomputed::new(source, global_threshold)
 }
 
@@ -79,7 +79,7 @@ fn estimate_black_point(buckets: &[u32; LUMINANCE_BUCKETS]) -> Option<u32> {
 
 /// The global-threshold bit matrix (black where the grey level is below the black point);
 /// `None` where rxing's binariser fails (too little contrast, or an empty image).
-pub fn global_threshold(lum: &[u8], width: usize, height: usize) -> Option<BitMatrix> {
+pub(crate) fn global_threshold(lum: &[u8], width: usize, height: usize) -> Option<BitMatrix> {
     if width == 0 || height == 0 || lum.len() != width * height {
         return None;
     }

@@ -20,7 +20,7 @@ const MIN_DYNAMIC_RANGE: u8 = 24;
 /// calls black is black), and each pixel row is compared and packed a word at a time. Row
 /// queries (1-D readers) and images under 40 px go to the global-histogram binariser, as in
 /// rxing.
-pub fn local_binarizer<LS: LuminanceSource>(source: LS) -> Precomputed<LS> {
+pub(crate) fn local_binarizer<LS: LuminanceSource>(source: LS) -> Precomputed<LS> {
     Precomputed::new(source, local_threshold)
 }
 

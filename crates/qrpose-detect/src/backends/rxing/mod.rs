@@ -7,14 +7,15 @@
 //!
 //! rxing's own parts rewritten for speed, each giving rxing's result bit for bit (a test
 //! beside each compares them with rxing's): the hybrid binariser ([`hybrid_binarizer`]),
-//! the global-histogram binariser ([`global_binarizer`]), both building their bit matrix
-//! at once ([`binarizer`]), and the finder-pattern search (module `finder_scan`). They lean
-//! on rxing's internals, which is why the workspace pins rxing's exact version.
+//! the global-histogram binariser ([`global_binarizer`](mod@global_binarizer)), both
+//! building their bit matrix at once ([`binarizer`]), and the finder-pattern search (module
+//! `finder_scan`). They lean on rxing's internals, which is why the workspace pins rxing's
+//! exact version.
 
-pub mod binarizer;
+mod binarizer;
 mod finder_scan;
-pub mod global_binarizer;
-pub mod hybrid_binarizer;
+mod global_binarizer;
+mod hybrid_binarizer;
 
 use crate::backends::{Backend, Candidate, Detector};
 use crate::contain::contain;
@@ -49,7 +50,7 @@ impl RxingDetector {
     }
     /// The hybrid binariser, returning also the symbols whose grid was sampled but did not
     /// decode (payload `None`): `auto`'s crop reads of small candidates hand them to the
-    /// re-read through the refined grid ([`crate::search::reread`]).
+    /// re-read through the refined grid ([`crate::search::reread()`]).
     pub fn located() -> Self {
         Self {
             located: true,
@@ -182,14 +183,14 @@ impl RxingDetector {
     /// The symbols read in `image`, and the regions of the finder-pattern triples that
     /// could not be read (for `auto`'s further passes).
     #[must_use]
-    pub fn detect_with_regions(&self, image: &GrayImage) -> (Vec<Candidate>, Vec<Region>) {
+    pub(crate) fn detect_with_regions(&self, image: &GrayImage) -> (Vec<Candidate>, Vec<Region>) {
         let (found, regions, _) = self.detect_with_patterns(image);
         (found, regions)
     }
 
     /// [`Self::detect_with_regions`], and the finder patterns that no decoded symbol used.
     #[must_use]
-    pub fn detect_with_patterns(
+    pub(crate) fn detect_with_patterns(
         &self,
         image: &GrayImage,
     ) -> (Vec<Candidate>, Vec<Region>, Vec<FinderPattern>) {

@@ -8,7 +8,7 @@
 
 use super::MIN_PX_PER_MODULE;
 use super::modules::{function_module_count, function_modules};
-use crate::raster::gray::GrayImage;
+use crate::raster::GrayImage;
 use crate::refine::homography::{Homography, ModulePoint};
 use qrpose_core::geometry::frames::PixelPoint;
 
@@ -73,7 +73,7 @@ fn quad_levels(image: &GrayImage, corners: &[PixelPoint; 4]) -> Option<(f64, f64
 
 /// The module count whose function patterns fit best, among versions with at least
 /// [`MIN_PX_PER_MODULE`] pixels per module.
-pub fn estimate_module_count(image: &GrayImage, corners: &[PixelPoint; 4]) -> Option<usize> {
+pub(crate) fn estimate_module_count(image: &GrayImage, corners: &[PixelPoint; 4]) -> Option<usize> {
     let side_px = (0..4)
         .map(|i| (corners[i].0 - corners[(i + 1) % 4].0).norm())
         .fold(f64::INFINITY, f64::min);

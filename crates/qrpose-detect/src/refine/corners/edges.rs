@@ -10,7 +10,7 @@
 use super::MIN_PX_PER_MODULE;
 use super::lens::Grid;
 use super::modules::ModuleMap;
-use crate::raster::gray::GrayImage;
+use crate::raster::GrayImage;
 use crate::refine::homography::ModulePoint;
 use crate::refine::profile::{DarkRun, fit_profile};
 use qrpose_core::geometry::frames::PixelPoint;

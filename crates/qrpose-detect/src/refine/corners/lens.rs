@@ -26,20 +26,20 @@ const SCALE_STEP_MODULES: f64 = 1e-3;
 
 /// A camera whose lens distorts: ideal pixels to the photo's pixels and back.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Lens {
+pub(crate) struct Lens {
     camera: Camera,
 }
 
 impl Lens {
     /// The lens of `camera`; `None` when it does not distort (every coefficient 0), and
     /// the photo's pixels are then the ideal ones.
-    pub fn of(camera: &Camera) -> Option<Self> {
+    pub(crate) fn of(camera: &Camera) -> Option<Self> {
         (!camera.distortion().is_none()).then_some(Self { camera: *camera })
     }
 
     /// Where the photo shows the ideal pixel `ideal`: through K⁻¹ to the ideal normalised
     /// point, through the distortion, and back through K.
-    pub fn distort(&self, ideal: PixelPoint) -> PixelPoint {
+    pub(crate) fn distort(&self, ideal: PixelPoint) -> PixelPoint {
         let c = &self.camera;
         let xy_norm =
             NormalizedPoint::new((ideal.u() - c.cx()) / c.fx(), (ideal.v() - c.cy()) / c.fy());
@@ -48,7 +48,7 @@ impl Lens {
 
     /// The ideal pixel of the photo's pixel `uv_px`; `None` where the lens cannot be
     /// undistorted (see `Camera::normalize`; a fisheye pixel 90° or more off the axis).
-    pub fn undistort(&self, uv_px: PixelPoint) -> Option<PixelPoint> {
+    pub(crate) fn undistort(&self, uv_px: PixelPoint) -> Option<PixelPoint> {
         let xy_norm = self.camera.normalize(&uv_px).ok()?;
         Some(self.camera.ideal_from_normalized(&xy_norm))
     }

@@ -48,10 +48,10 @@ mod fit;
 mod lens;
 mod modules;
 
-pub use count::estimate_module_count;
-pub use lens::Lens;
+pub(crate) use count::estimate_module_count;
+pub(crate) use lens::Lens;
 
-use crate::raster::gray::GrayImage;
+use crate::raster::GrayImage;
 use crate::refine::homography::ModulePoint;
 use edges::observe;
 use fit::{finder_corners, fit_homography};
@@ -67,13 +67,13 @@ use qrpose_core::geometry::frames::PixelPoint;
 /// error it started from, so a start a pixel or more off (corners read at half scale, say)
 /// gets a second one. A pass that moves the corners further than the pass before (the
 /// passes do not converge, as on some hard photos) is dropped and the one before kept.
-pub const MAX_FINAL_PASSES: usize = 3;
+pub(crate) const MAX_FINAL_PASSES: usize = 3;
 /// A final pass that moved no corner further than this has settled, px.
-pub const SETTLED_PX: f64 = 0.5;
+pub(crate) const SETTLED_PX: f64 = 0.5;
 /// Refined corners further than this from the backend's (in modules) mean a failure.
-pub const MAX_MOVE_MODULES: f64 = 2.0;
+pub(crate) const MAX_MOVE_MODULES: f64 = 2.0;
 /// Fewest pixels per module the refinement works with.
-pub const MIN_PX_PER_MODULE: f64 = 1.2;
+pub(crate) const MIN_PX_PER_MODULE: f64 = 1.2;
 
 /// How refinement ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -111,7 +111,8 @@ pub struct Refinement {
     /// `status` is not [`RefineStatus::Refined`].
     pub corners_px: [PixelPoint; 4],
     /// The twelve outer corners of the three finder patterns, px (see
-    /// [`super::finders::finder_model_points`] for their order), when every finder side was measured.
+    /// [`super::finder_model_points`] for their order), when every finder side was
+    /// measured.
     pub finder_corners_px: Option<[PixelPoint; 12]>,
     /// The module count N (21 for version 1, 4 more per version).
     pub module_count: Option<usize>,

@@ -8,7 +8,7 @@
 #![allow(clippy::cast_possible_truncation)]
 
 use super::lens::Grid;
-use crate::raster::gray::GrayImage;
+use crate::raster::GrayImage;
 use crate::refine::homography::ModulePoint;
 
 /// Module colours: `Some(true)` dark, `Some(false)` light, `None` unknown. Outside the

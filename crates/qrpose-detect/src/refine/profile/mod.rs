@@ -21,32 +21,32 @@ use normal::{NORMAL_TABLE, NormalTable, normal};
 
 /// One dark run of the pattern, [start, end) in modules along the profile.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DarkRun {
+pub(crate) struct DarkRun {
     /// Start, modules.
-    pub start: f64,
+    pub(crate) start: f64,
     /// End, modules.
-    pub end: f64,
+    pub(crate) end: f64,
 }
 
 /// A fitted profile.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ProfileFit {
+pub(crate) struct ProfileFit {
     /// Shift of the pattern, modules (the edge lies at d = δ).
-    pub delta: f64,
+    pub(crate) delta: f64,
     /// Blur σ, modules.
-    pub sigma: f64,
+    pub(crate) sigma: f64,
     /// Light level, grey values.
-    pub light: f64,
+    pub(crate) light: f64,
     /// Dark level, grey values.
-    pub dark: f64,
+    pub(crate) dark: f64,
     /// RMS residual, grey values.
-    pub rms: f64,
+    pub(crate) rms: f64,
 }
 
 /// Largest accepted |δ|, modules: beyond it the fit has locked on to another edge.
-pub const MAX_SHIFT_MODULES: f64 = 0.75;
+pub(crate) const MAX_SHIFT_MODULES: f64 = 0.75;
 /// Fewest profile samples worth fitting.
-pub const MIN_SAMPLES: usize = 8;
+pub(crate) const MIN_SAMPLES: usize = 8;
 const LM_ITERATIONS: usize = 8;
 /// Levenberg-Marquardt iterations after the δ scan: the pass that scans starts from a
 /// backend's whole-pixel corners and is followed by a full pass, so a rough fit will do.
@@ -212,7 +212,7 @@ fn levels_and_cost(
 /// refined by a few iterations only; without, the fit starts at δ = 0 and iterates to
 /// convergence. `None` when there are too few samples, the fit does not settle, the
 /// contrast vanishes, or δ leaves ±[`MAX_SHIFT_MODULES`].
-pub fn fit_profile(
+pub(crate) fn fit_profile(
     runs: &[DarkRun],
     d: &[f64],
     intensity: &[f64],

@@ -1,4 +1,4 @@
-//! The `auto` strategy of [`crate::find_candidates`], bounded by a [`Budget`].
+//! The `auto` strategy of [`crate::find_candidates`], bounded by a [`crate::Budget`].
 //!
 //! 1. **Find** (every effort): rxing reads the whole frame at full resolution, where small
 //!    codes are, and (not `fast`) at half scale, where codes that fill the frame, moiré on
@@ -19,17 +19,17 @@
 //!    a quadruple-scale sharpened one. In a frame where a code was read, small finder
 //!    patterns of the full-resolution read that no code used get the same crop reads
 //!    ([`sharpened::find_lone`]). Symbols those crop reads locate but cannot decode are
-//!    read again through their module grid ([`crate::search::reread`]) and dropped if that fails.
+//!    read again through their module grid ([`crate::search::reread()`]) and dropped if that fails.
 //! 2. **Look closer** (`balanced`, `thorough`): only where a region is, never on the whole
 //!    frame: a crop around it goes through the other binariser, rqrr, and the image
-//!    variants of [`crate::raster::filters`] (global histogram, denoised, contrast-stretched,
+//!    variants of [`crate::raster`] (global histogram, denoised, contrast-stretched,
 //!    inverted, sharpened, double scale) until it reads. A frame with nothing finder-like
 //!    costs the reads of step 1 and the sharpened read, nothing more.
 //! 3. **Everything** (`thorough`): every backend and every variant on the whole frame, as
 //!    long as the deadline allows (rqrr on frames of at most [`RQRR_WHOLE_FRAME_MAX_PIXELS`]).
 //!
 //! Before every pass after the first the deadline is checked ([`PassLog`]); symbols found on
-//! the way are re-read through their module grid and merged ([`crate::merge_candidates`]).
+//! the way are re-read through their module grid and merged ([`crate::search::merge_candidates`]).
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
@@ -37,42 +37,39 @@
 
 #[cfg(feature = "zxing-cpp")]
 use crate::backends::zxing_cpp;
+use crate::backends::{auto_order, detector_for};
 use crate::backends::{rqrr, rxing};
 use crate::budget::{Effort, PassLog};
-use crate::raster::filters::downscale_half;
-use crate::raster::gray::GrayImage;
+use crate::raster::GrayImage;
+use crate::raster::downscale_half;
 use crate::search::merge::merge_candidates;
 use crate::search::merge::{any_decoded, reread_undecoded, same_symbol};
 use crate::search::pairs::FinderPattern;
 use crate::search::region::{Crop, Region, unread_regions};
-use crate::{Backend, Candidate, Detector, auto_order, detector_for};
+use crate::{Backend, Candidate, Detector};
 use qrpose_core::geometry::frames::PixelPoint;
 
 mod passes;
 mod sharpened;
-pub use passes::{
-    DENOISE_SIGMA_PX, SHARPEN_AMOUNT, SHARPEN_DOUBLE_AMOUNT, SHARPEN_DOUBLE_SIGMA_PX,
-    SHARPEN_SIGMA_PX,
-};
 use passes::{decoded, look_closer, read_crop, rescale, variants};
 use sharpened::{find_lone, find_sharpened, reads_small_codes};
 
 /// Images up to this many px on their longer side get a double-scale second pass (the last
 /// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
 /// backend misses at their own size, are found there.
-pub const UPSCALE_MAX_SIDE_PX: usize = 1920;
+pub(crate) const UPSCALE_MAX_SIDE_PX: usize = 1920;
 
 /// rqrr searches the whole frame only up to this many pixels (thorough). Its grid search
 /// cannot be interrupted and grows with the number of finder-like blobs, not only with the
 /// pixels: 0.1-0.2 s on a 12 MP photo of one code, but 3 s on a 12 MP shelf photo with 55
 /// codes and 43 s on the same shelf at 49 MP (measured, docs/detection.md), which no deadline
 /// could stop. On larger frames rqrr still reads every region's crop.
-pub const RQRR_WHOLE_FRAME_MAX_PIXELS: usize = 4_000_000;
+pub(crate) const RQRR_WHOLE_FRAME_MAX_PIXELS: usize = 4_000_000;
 
 /// Images whose shorter side has at least this many px are also read at half scale by
 /// `balanced` and `thorough` (smaller ones are read at full resolution only): a quarter of
 /// the pixels, where codes that fill the frame and moiré read better.
-pub const HALF_SCALE_FIRST_MIN_SIDE_PX: usize = 700;
+pub(crate) const HALF_SCALE_FIRST_MIN_SIDE_PX: usize = 700;
 
 /// What the passes so far have found.
 struct Finds<'a> {
@@ -178,16 +175,16 @@ fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &mut PassLog)
 }
 
 /// The longest side of the smallest level of step 1, px.
-pub const SMALL_LEVEL_MAX_SIDE_PX: usize = 800;
+pub(crate) const SMALL_LEVEL_MAX_SIDE_PX: usize = 800;
 /// The smallest level is at least quarter scale when its shorter side stays at least this
 /// long there, px (screens photographed close: moiré at half scale).
-pub const SMALL_LEVEL_MIN_SIDE_PX: usize = 300;
+pub(crate) const SMALL_LEVEL_MIN_SIDE_PX: usize = 300;
 
 /// Images of at most this many pixels in which nothing was read get step 3 (every backend
 /// and variant on the whole frame) at `balanced` too: on a small frame it costs what a crop
 /// does, and small, low-resolution photos are where the variants read what the first reads
 /// miss.
-pub const WHOLE_FRAME_MAX_PIXELS: usize = 400_000;
+pub(crate) const WHOLE_FRAME_MAX_PIXELS: usize = 400_000;
 
 /// One read of a downscaled copy (`scale` source px per copy px). Whole-pixel corners at
 /// that scale are `scale` pixels wide at full resolution, so a symbol new there is read

@@ -2,14 +2,15 @@
 //! denoised, stretched, inverted, sharpened, double scale), each variant built only when its
 //! pass runs, and the mapping of what they find back to the source pixels.
 
+use crate::backends::detector_for;
 #[cfg(feature = "zxing-cpp")]
 use crate::backends::zxing_cpp;
 use crate::backends::{rqrr, rxing};
 use crate::budget::PassLog;
-use crate::raster::filters::{invert, sharpen, stretch_contrast, upscale_double};
-use crate::raster::gray::GrayImage;
+use crate::raster::GrayImage;
+use crate::raster::{invert, sharpen, stretch_contrast, upscale_double};
 use crate::search::region::Crop;
-use crate::{Backend, Candidate, Detector, detector_for};
+use crate::{Backend, Candidate, Detector};
 use qrpose_core::geometry::frames::PixelPoint;
 use std::borrow::Cow;
 use std::time::Instant;
@@ -131,11 +132,11 @@ pub(super) fn quad_sharpened(
 /// Longest side of a crop that gets [`quad_sharpened`], px: the pass is for codes of about
 /// 30-45 px, and sixteen times the pixels of a larger crop would cost more than the frame's
 /// own reads.
-pub const QUAD_MAX_SIDE_PX: usize = 160;
+pub(crate) const QUAD_MAX_SIDE_PX: usize = 160;
 /// Unsharp mask of the quadruple-scale pass: Gaussian σ, source px.
-pub const SHARPEN_QUAD_SIGMA_PX: f64 = 0.75;
+pub(crate) const SHARPEN_QUAD_SIGMA_PX: f64 = 0.75;
 /// Unsharp mask of the quadruple-scale pass: amount.
-pub const SHARPEN_QUAD_AMOUNT: f64 = 2.0;
+pub(crate) const SHARPEN_QUAD_AMOUNT: f64 = 2.0;
 
 /// What a pass on a crop found, in the source's pixels: `detector` on `variant` (`scale`
 /// crop px per variant px), mapped back through `crop`.
@@ -154,7 +155,7 @@ pub(super) fn read_crop(
 
 /// Blur of the blurred global-histogram pass, px: it smooths halftone and sensor noise of
 /// small photos before the single threshold.
-pub const DENOISE_SIGMA_PX: f64 = 1.0;
+pub(crate) const DENOISE_SIGMA_PX: f64 = 1.0;
 
 /// The second passes of `auto`, cheapest first, each variant built only when its pass runs:
 /// 1. the best backend with the global-histogram binariser, on the image and on a copy
@@ -212,13 +213,13 @@ pub(super) fn second_passes(image: &GrayImage, best: Backend) -> Vec<SecondPass<
 }
 
 /// Unsharp mask of the sharpened second pass: Gaussian σ, source px.
-pub const SHARPEN_SIGMA_PX: f64 = 1.5;
+pub(crate) const SHARPEN_SIGMA_PX: f64 = 1.5;
 /// Unsharp mask of the sharpened second pass: amount (1 doubles the detail).
-pub const SHARPEN_AMOUNT: f64 = 2.0;
+pub(crate) const SHARPEN_AMOUNT: f64 = 2.0;
 /// Unsharp mask of the sharpened double-scale pass: Gaussian σ, source px.
-pub const SHARPEN_DOUBLE_SIGMA_PX: f64 = 1.0;
+pub(crate) const SHARPEN_DOUBLE_SIGMA_PX: f64 = 1.0;
 /// Unsharp mask of the sharpened double-scale pass: amount.
-pub const SHARPEN_DOUBLE_AMOUNT: f64 = 3.0;
+pub(crate) const SHARPEN_DOUBLE_AMOUNT: f64 = 3.0;
 
 /// Maps candidates found on a downscaled copy (`scale` source px per copy px) back to the
 /// source: pixel centres scale about −0.5.

@@ -9,17 +9,18 @@ use super::passes::{
     SHARPEN_AMOUNT, SHARPEN_SIGMA_PX, SecondPass, decoded, double, double_sharpened,
     quad_sharpened, read_crop,
 };
+use crate::backends::detector_for;
 use crate::backends::rxing::RxingDetector;
 use crate::budget::PassLog;
-use crate::raster::filters::sharpen;
-use crate::raster::gray::GrayImage;
+use crate::raster::GrayImage;
+use crate::raster::sharpen;
 use crate::refine::corners::{RefineStatus, refine_corners};
 use crate::search::merge::any_decoded;
 use crate::search::merge::shortest_side_px;
 use crate::search::pairs::{lone_regions, pair_regions};
 use crate::search::region::{Crop, Region, same_place, unread_regions};
 use crate::search::reread::reread;
-use crate::{Backend, Candidate, Detector, detector_for};
+use crate::{Backend, Candidate, Detector};
 use std::time::Instant;
 
 /// Step 1½ (`balanced`, `thorough`; run after step 2), on frames of at most
@@ -99,7 +100,7 @@ pub(super) fn find_lone(finds: &mut Finds<'_>, log: &mut PassLog) {
 }
 
 /// At most this many lone finder patterns of the full-resolution read get crop reads.
-pub const LONE_PATTERNS_MAX: usize = 2;
+pub(crate) const LONE_PATTERNS_MAX: usize = 2;
 
 /// A double-scale sharpened read of each region's crop, logged as `name K double
 /// sharpened`, then, where that read nothing, the pass that `then` makes of the crop, if
@@ -197,14 +198,14 @@ fn reread_small_located(image: &GrayImage, read: &mut Vec<Candidate>) {
 /// trigger reads 13 of them (all 10), while on the BoofCV development photos (one or a few
 /// codes, mostly at more px per module) 34 more of 272 photos pay the read (68 with those
 /// where nothing was found), where reading every frame ≤ 1920 px meant 150.
-pub const SHARPENED_TRIGGER_MAX_PX_PER_MODULE: f64 = 6.0;
+pub(crate) const SHARPENED_TRIGGER_MAX_PX_PER_MODULE: f64 = 6.0;
 
 /// The small-code trigger of [`find_sharpened`] also wants this many codes read: a frame
 /// showing one code is a robot camera's usual frame, whose latency is that of the first
 /// reads (the sharpened read of a 1280 × 720 frame, 5 ms, would more than double it:
 /// `docs/detection.md`, Speed), while two or more codes make a shelf or a wall of labels,
 /// where codes the first reads miss are likely.
-pub const SHARPENED_TRIGGER_MIN_CODES: usize = 2;
+pub(crate) const SHARPENED_TRIGGER_MIN_CODES: usize = 2;
 
 /// Whether `found` holds at least [`SHARPENED_TRIGGER_MIN_CODES`] decoded codes, one of
 /// them of at most [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module. A code whose
@@ -226,9 +227,9 @@ const MIN_MODULE_COUNT: usize = 21;
 /// more look, a double-scale sharpened read of their crop, when their box is at most this
 /// long (px): the pass is there for small codes, and the bound keeps spurious triples in
 /// the texture of a frame without a code from costing more than a few small reads.
-pub const SHARPENED_REGION_MAX_SIDE_PX: f64 = 160.0;
+pub(crate) const SHARPENED_REGION_MAX_SIDE_PX: f64 = 160.0;
 /// At most this many such triples get that look.
-pub const SHARPENED_REGIONS_MAX: usize = 4;
+pub(crate) const SHARPENED_REGIONS_MAX: usize = 4;
 /// At most this many places of lone finder-pattern pairs found on the sharpened copy get
 /// that look too (after the triples, and only where no triple looked).
-pub const SHARPENED_PAIRS_MAX: usize = 2;
+pub(crate) const SHARPENED_PAIRS_MAX: usize = 2;
