@@ -56,6 +56,7 @@ fn the_core_and_the_detector_pull_in_no_async_or_http_crate() {
         "qrpose-sim",
         "qrpose-site",
         "qrpose-calib",
+        "qrpose-track",
     ] {
         let names = dependency_names(package);
         assert!(

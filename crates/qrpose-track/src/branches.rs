@@ -1,0 +1,375 @@
+//! The planar ambiguity over time: each track keeps up to two hypotheses about which branch
+//! of the planar pair is the true pose, each a two-model estimator ([`crate::imm`]) with a
+//! log-weight, and reports the heavier.
+//!
+//! A single frame of a small or distant code often fits two poses about equally well (the
+//! planar ambiguity); qrpose-core reports both, with the image's probability p that the
+//! alternative is the true one (calibrated: `docs/accuracy.md`). The true pose moves
+//! smoothly from frame to frame while the image odds favour it more often than not:
+//! evidence accumulates over frames. This is a multiple-hypothesis tracker with a beam of
+//! two (Blackman, "Multiple hypothesis tracking for multiple target tracking", IEEE AESM
+//! 19(1), 2004; Bar-Shalom, Li and Kirubarajan 2001, §11.6 for the weights), the
+//! hypotheses being the branch histories of one code.
+//!
+//! Per frame, every hypothesis h (a two-model estimator predicted to the frame's time,
+//! [`crate::imm`], log-weight l_h) is updated with the frame's corners by the iterated EKF
+//! ([`crate::filter`]) from up to three starts: its prediction and each candidate pose of
+//! the frame. Starts that reach the same optimum are one; distinct optima are the branches
+//! h can take. Children (J the least over the two models, −½(J + ln det S) standing for
+//! the log of the models' combined likelihood):
+//!
+//! ```text
+//! each optimum with J ≤ gate:   h updated, l = l_h − ½(J + ln det S)
+//! no optimum within the gate:   h predicted only (the frame is clutter to h),
+//!                               l = l_h − ½(gate + ln det S)
+//!   and, for the heaviest h, a re-opened branch at each candidate k (a fresh filter,
+//!   velocity kept):             l = l_h + ln REOPEN_PRIOR − ½(gate + ln det S + e_k),
+//!                               e_k = −2 ln P(k | image), P(best) = 1 − p, P(alt) = p
+//! ```
+//!
+//! −½(J + ln det S) is the log predictive likelihood of the corners (Laplace
+//! approximation), so the weights are log posteriors up to a common constant, and the
+//! image's own preference between the two poses is in J (the better-fitting pose leaves
+//! smaller residuals). The gate floor keeps one outlier frame from deciding. The heaviest
+//! child is kept; children within `MERGE_D2` of it (squared Mahalanobis over the sum of the
+//! covariances) add their weight to it; the next heaviest distinct child is the second
+//! hypothesis, dropped if its probability is below `branch_prune_probability`. Re-opening
+//! lets frames that see clearly undo a branch chosen when they did not.
+//!
+//! A new track starts with one hypothesis per candidate of its first frame, log-weights
+//! ln(1 − p) and ln p. The reported pose is the heavier hypothesis; its covariance is the
+//! mixture's spread about it, Σᵢ wᵢ·(Pᵢ + dᵢdᵢᵀ), dᵢ the pose difference of hypothesis i
+//! from the reported one, so an unresolved ambiguity shows in the covariance.
+
+use crate::filter::{Eskf, ProcessNoise};
+use crate::imm::{Imm, ImmPosterior, MODES};
+use crate::measurement::{Measurement, PoseCandidate};
+use crate::params::TrackerParams;
+use crate::so3::angle_between;
+use nalgebra::{Matrix6, Vector3};
+
+/// Two children whose poses differ by at most this squared Mahalanobis distance (over the
+/// sum of their covariances, 6 dof) are one hypothesis: merged.
+const MERGE_D2: f64 = 1.0;
+
+/// Prior probability, given to a re-opened branch, that the track's branch history is wrong.
+pub(crate) const REOPEN_PRIOR: f64 = 1e-3;
+
+/// One branch hypothesis.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Hypothesis {
+    pub imm: Imm,
+    /// The combined estimate of `imm`.
+    pub estimate: Eskf,
+    /// Unnormalised log-weight (the heaviest is kept at 0).
+    pub log_weight: f64,
+}
+
+impl Hypothesis {
+    fn new(imm: Imm, log_weight: f64) -> Self {
+        Self {
+            estimate: imm.combined(),
+            imm,
+            log_weight,
+        }
+    }
+}
+
+/// What fusing one measurement did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Fused {
+    /// The reported hypothesis (after the update) fused the measurement.
+    pub any: bool,
+    /// The reported hypothesis took the frame's alternative pose, not its best fit.
+    pub picked_alternative: bool,
+    /// J of the reported hypothesis's update (squared Mahalanobis, 8 dof).
+    pub d2: Option<f64>,
+}
+
+/// The hypotheses of one track (one or two).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Branches {
+    hyps: Vec<Hypothesis>,
+}
+
+fn start_imm(pose: &PoseCandidate, velocity: Vector3<f64>, params: &TrackerParams) -> Imm {
+    Imm::new(Eskf::from_pose(
+        pose,
+        params.measurement_inflation,
+        velocity,
+        params.initial_velocity_sigma_mm_s,
+        params.initial_angular_velocity_sigma_rad_s,
+    ))
+}
+
+/// A candidate next hypothesis.
+#[derive(Debug, Clone)]
+struct Child {
+    hyp: Hypothesis,
+    /// It fused this frame (an update, or a re-opened branch started from it).
+    fused: bool,
+    /// J of its update (the least one when it only predicted); `None` when re-opened.
+    cost: Option<f64>,
+}
+
+impl Branches {
+    /// Hypotheses from a first measurement.
+    pub fn start(m: &Measurement, params: &TrackerParams) -> Self {
+        let mut hyps: Vec<Hypothesis> = m
+            .candidates()
+            .into_iter()
+            .map(|(pose, e)| Hypothesis::new(start_imm(&pose, Vector3::zeros(), params), -0.5 * e))
+            .collect();
+        hyps.retain(|h| h.log_weight.exp() >= params.branch_prune_probability);
+        if hyps.is_empty() {
+            hyps.push(Hypothesis::new(
+                start_imm(&m.best, Vector3::zeros(), params),
+                0.0,
+            ));
+        }
+        let mut b = Self { hyps };
+        b.normalise();
+        b
+    }
+
+    /// Predicts every hypothesis `dt_s` ahead.
+    pub fn predict(&mut self, dt_s: f64, noises: &[ProcessNoise; MODES], hold_s: f64) {
+        for h in &mut self.hyps {
+            h.imm.predict(dt_s, noises, hold_s);
+            h.estimate = h.imm.combined();
+        }
+    }
+
+    /// A copy predicted `dt_s` ahead.
+    pub fn predicted(&self, dt_s: f64, noises: &[ProcessNoise; MODES], hold_s: f64) -> Self {
+        let mut b = self.clone();
+        b.predict(dt_s, noises, hold_s);
+        b
+    }
+
+    /// The index of the heaviest hypothesis.
+    fn reported_index(&self) -> usize {
+        let mut best = 0;
+        for (i, h) in self.hyps.iter().enumerate() {
+            if h.log_weight > self.hyps[best].log_weight {
+                best = i;
+            }
+        }
+        best
+    }
+
+    /// The reported (heaviest) hypothesis's combined estimate.
+    pub fn reported(&self) -> &Eskf {
+        &self.hyps[self.reported_index()].estimate
+    }
+
+    /// The normalised probability of the reported hypothesis.
+    pub fn reported_probability(&self) -> f64 {
+        self.probabilities()[self.reported_index()]
+    }
+
+    /// The probability of the manoeuvring model in the reported hypothesis.
+    pub fn manoeuvre_probability(&self) -> f64 {
+        self.hyps[self.reported_index()].imm.probs[1]
+    }
+
+    fn probabilities(&self) -> Vec<f64> {
+        let w: Vec<f64> = self.hyps.iter().map(|h| h.log_weight.exp()).collect();
+        let total: f64 = w.iter().sum();
+        w.iter().map(|x| x / total).collect()
+    }
+
+    /// Keeps the heaviest log-weight at 0.
+    fn normalise(&mut self) {
+        let max = self
+            .hyps
+            .iter()
+            .map(|h| h.log_weight)
+            .fold(f64::NEG_INFINITY, f64::max);
+        for h in &mut self.hyps {
+            h.log_weight -= max;
+        }
+    }
+
+    /// Σᵢ wᵢ·(Pᵢ + dᵢdᵢᵀ) about the reported hypothesis (module docs).
+    pub fn mixture_pose_covariance(&self) -> Matrix6<f64> {
+        let reported = self.reported();
+        let mut p = Matrix6::zeros();
+        for (h, w) in self.hyps.iter().zip(self.probabilities()) {
+            let d = h.estimate.pose_difference(reported);
+            p += (h.estimate.pose_covariance() + d * d.transpose()) * w;
+        }
+        p
+    }
+
+    /// Whether every hypothesis is finite.
+    pub fn is_finite(&self) -> bool {
+        self.hyps
+            .iter()
+            .all(|h| h.imm.is_finite() && h.estimate.is_finite() && h.log_weight.is_finite())
+    }
+
+    /// The distinct optima of hypothesis `h` updated from its prediction and from each
+    /// candidate pose.
+    fn optima(
+        h: &Hypothesis,
+        m: &Measurement,
+        params: &TrackerParams,
+    ) -> Vec<(ImmPosterior, Eskf)> {
+        let mut own: Vec<(ImmPosterior, Eskf)> = Vec::new();
+        let starts = std::iter::once(None).chain(m.candidates().into_iter().map(Some));
+        for candidate in starts {
+            // A candidate within reach of an optimum already found lies in its basin: the
+            // update from it would land there again.
+            if let Some((c, _)) = &candidate
+                && own.iter().any(|(_, e)| near(e, c))
+            {
+                continue;
+            }
+            let start = candidate.map(|(c, _)| (c.rotation, c.centre_mm));
+            let Some(post) = h.imm.update(
+                &m.corners,
+                &m.marker,
+                params.measurement_inflation,
+                start.as_ref().map(|(r, c)| (r, c)),
+            ) else {
+                continue;
+            };
+            let estimate = post.imm.combined();
+            match own
+                .iter_mut()
+                .find(|(_, e)| separation(e, &estimate) <= MERGE_D2)
+            {
+                Some((o, _)) if o.log_likelihood >= post.log_likelihood => {}
+                Some(o) => *o = (post, estimate),
+                None => own.push((post, estimate)),
+            }
+        }
+        own
+    }
+
+    /// Fuses one measurement (module docs).
+    pub fn fuse(&mut self, m: &Measurement, params: &TrackerParams) -> Fused {
+        let gate = params.gate_chi2;
+        let heaviest = self.reported_index();
+        let mut children: Vec<Child> = Vec::new();
+        for (i, h) in self.hyps.iter().enumerate() {
+            let own = Self::optima(h, m, params);
+            let least = own
+                .iter()
+                .map(|(o, _)| o.cost)
+                .fold(f64::INFINITY, f64::min);
+            for (post, estimate) in own.into_iter().filter(|(o, _)| o.cost <= gate) {
+                children.push(Child {
+                    cost: Some(post.cost),
+                    hyp: Hypothesis {
+                        imm: post.imm,
+                        estimate,
+                        log_weight: h.log_weight + post.log_likelihood,
+                    },
+                    fused: true,
+                });
+            }
+            if least <= gate {
+                continue;
+            }
+            // Clutter to h: the floor −½(gate + ln det S), ln det S that of its prediction.
+            let ln_det =
+                h.estimate
+                    .predicted_ln_det_s(&m.corners, &m.marker, params.measurement_inflation);
+            children.push(Child {
+                hyp: Hypothesis {
+                    log_weight: h.log_weight - 0.5 * (gate + ln_det),
+                    ..h.clone()
+                },
+                fused: false,
+                cost: least.is_finite().then_some(least),
+            });
+            if i == heaviest {
+                for (pose, e) in m.candidates() {
+                    let imm = start_imm(&pose, h.estimate.velocity_mm_s, params);
+                    children.push(Child {
+                        hyp: Hypothesis::new(
+                            imm,
+                            h.log_weight + REOPEN_PRIOR.ln() - 0.5 * (gate + ln_det + e),
+                        ),
+                        fused: true,
+                        cost: None,
+                    });
+                }
+            }
+        }
+        let first = self.select(children, params);
+        let picked_alternative = m.alternative.is_some_and(|a| {
+            let r = &first.hyp.estimate.rotation;
+            first.fused && angle_between(r, &a.pose.rotation) < angle_between(r, &m.best.rotation)
+        });
+        Fused {
+            any: first.fused,
+            picked_alternative,
+            d2: first.cost,
+        }
+    }
+
+    /// Keeps the heaviest child and the heaviest distinct one (module docs); returns the
+    /// heaviest's record.
+    fn select(&mut self, mut children: Vec<Child>, params: &TrackerParams) -> Child {
+        children.sort_by(|a, b| b.hyp.log_weight.total_cmp(&a.hyp.log_weight));
+        let mut rest = children.into_iter();
+        let Some(mut first) = rest.next() else {
+            // No hypothesis had a child: cannot happen (each has at least one).
+            return Child {
+                hyp: self.hyps[0].clone(),
+                fused: false,
+                cost: None,
+            };
+        };
+        let mut second: Option<Child> = None;
+        for c in rest {
+            if separation(&first.hyp.estimate, &c.hyp.estimate) <= MERGE_D2 {
+                first.hyp.log_weight = log_add(first.hyp.log_weight, c.hyp.log_weight);
+            } else {
+                second = Some(c);
+                break;
+            }
+        }
+        self.hyps = vec![first.hyp.clone()];
+        if let Some(c) = second {
+            let p = 1.0 / (1.0 + (first.hyp.log_weight - c.hyp.log_weight).exp());
+            if p >= params.branch_prune_probability {
+                self.hyps.push(c.hyp);
+            }
+        }
+        self.normalise();
+        first
+    }
+}
+
+/// ln(eᵃ + eᵇ).
+fn log_add(a: f64, b: f64) -> f64 {
+    let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
+    hi + (lo - hi).exp().ln_1p()
+}
+
+/// A candidate pose at most this squared Mahalanobis distance (6 dof, over the sum of
+/// its covariance and the optimum's) from an update's optimum lies in its basin.
+const SAME_BASIN_D2: f64 = 16.0;
+
+/// Whether candidate `c` is within [`SAME_BASIN_D2`] of the estimate `e`.
+fn near(e: &Eskf, c: &PoseCandidate) -> bool {
+    let mut d = nalgebra::Vector6::zeros();
+    d.fixed_rows_mut::<3>(0)
+        .copy_from(&crate::so3::log(&(c.rotation * e.rotation.inverse())));
+    d.fixed_rows_mut::<3>(3)
+        .copy_from(&(c.centre_mm - e.centre_mm));
+    let s = e.pose_covariance() + c.covariance;
+    s.cholesky()
+        .is_some_and(|ch| d.dot(&ch.solve(&d)) <= SAME_BASIN_D2)
+}
+
+/// dᵀ(P_a + P_b)⁻¹d between the poses of two filters.
+fn separation(a: &Eskf, b: &Eskf) -> f64 {
+    let d = a.pose_difference(b);
+    let s = a.pose_covariance() + b.pose_covariance();
+    s.cholesky().map_or(f64::INFINITY, |c| d.dot(&c.solve(&d)))
+}

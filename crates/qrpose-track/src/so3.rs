@@ -1,0 +1,128 @@
+//! The rotation group SO(3): exponential and logarithm maps and the left Jacobian, in the
+//! form the filter needs.
+//!
+//! Convention: a rotation error is a small rotation δθ (rad) about the **camera** axes
+//! applied on the **left**, R_true = Exp(δθ)·R, as in qrpose-core's per-frame covariance
+//! (`docs/conventions.md`, Covariance). This is Solà's "global" angular error.
+//!
+//! References:
+//! - J. Solà, "Quaternion kinematics for the error-state Kalman filter", arXiv:1711.02508,
+//!   2017: §2.3 (the rotation matrix, the exponential map as the Rodrigues formula and its
+//!   logarithm), §2.4 (the rotation vector), §4 (perturbations and Jacobians on SO(3)).
+//! - T. D. Barfoot, "State Estimation for Robotics", Cambridge University Press, 2017,
+//!   §7.1 (SO(3): exponential map, left Jacobian J and its closed form).
+
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+
+/// Below this angle (rad) the series forms are used: their truncation error (θ⁴ terms) is
+/// below double precision there.
+const SMALL_ANGLE_RAD: f64 = 1e-5;
+
+/// The skew-symmetric matrix [v]× with [v]×·w = v × w.
+pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    #[rustfmt::skip]
+    let m = Matrix3::new(
+        0.0,  -v.z, v.y,
+        v.z,  0.0,  -v.x,
+        -v.y, v.x,  0.0,
+    );
+    m
+}
+
+/// Exp(φ): the rotation by |φ| rad about φ/|φ|, by the Rodrigues formula
+/// R = I + sin θ·[u]× + (1 − cos θ)·[u]×², θ = |φ|, u = φ/θ (Solà 2017 §2.3.1).
+/// Near θ = 0 the series R ≈ I + [φ]× + ½[φ]×².
+pub fn exp(phi: &Vector3<f64>) -> Rotation3<f64> {
+    let theta = phi.norm();
+    let k = skew(phi);
+    let m = if theta < SMALL_ANGLE_RAD {
+        Matrix3::identity() + k + 0.5 * k * k
+    } else {
+        let (a, b) = (theta.sin() / theta, (1.0 - theta.cos()) / (theta * theta));
+        Matrix3::identity() + a * k + b * k * k
+    };
+    // Orthogonal to rounding; the filter renormalises what it composes.
+    Rotation3::from_matrix_unchecked(m)
+}
+
+/// Log(R): the rotation vector φ with Exp(φ) = R, |φ| ≤ π. Computed through the unit
+/// quaternion q = (w, v) of R with w ≥ 0: θ = 2·atan2(|v|, w), φ = θ·v/|v|
+/// (Solà 2017 §2.4), which keeps full precision at small angles where the trace formula
+/// θ = acos((tr R − 1)/2) loses half the digits.
+pub fn log(r: &Rotation3<f64>) -> Vector3<f64> {
+    let q = UnitQuaternion::from_rotation_matrix(r);
+    let (w, v) = if q.w < 0.0 {
+        (-q.w, -q.imag())
+    } else {
+        (q.w, q.imag())
+    };
+    let n = v.norm();
+    if n < 1e-300 {
+        return Vector3::zeros();
+    }
+    let theta = 2.0 * n.atan2(w);
+    v * (theta / n)
+}
+
+/// The left Jacobian of SO(3), J_l(φ), with Exp(φ + δ) ≈ Exp(J_l(φ)·δ)·Exp(φ)
+/// (Barfoot 2017 §7.1.3; J_l(φ) = J_r(−φ), Solà 2017 §4):
+///
+/// J_l(φ) = I + (1 − cos θ)/θ²·[φ]× + (θ − sin θ)/θ³·[φ]×²,  θ = |φ|;
+/// near θ = 0, J_l ≈ I + ½[φ]× + ⅙[φ]×².
+pub fn left_jacobian(phi: &Vector3<f64>) -> Matrix3<f64> {
+    let theta = phi.norm();
+    let k = skew(phi);
+    if theta < SMALL_ANGLE_RAD {
+        return Matrix3::identity() + 0.5 * k + k * k / 6.0;
+    }
+    let t2 = theta * theta;
+    Matrix3::identity()
+        + (1.0 - theta.cos()) / t2 * k
+        + (theta - theta.sin()) / (t2 * theta) * k * k
+}
+
+/// The angle between two rotations, rad: |Log(a·bᵀ)|.
+pub fn angle_between(a: &Rotation3<f64>, b: &Rotation3<f64>) -> f64 {
+    log(&(a * b.inverse())).norm()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn log_inverts_exp_from_tiny_angles_to_nearly_pi() {
+        for phi in [
+            Vector3::new(1e-9, -2e-9, 3e-9),
+            Vector3::new(3e-6, 1e-6, -2e-6),
+            Vector3::new(0.3, -0.2, 0.1),
+            Vector3::new(0.0, 3.1, 0.0),
+            Vector3::new(-1.2, 1.5, 2.0),
+        ] {
+            assert_relative_eq!(log(&exp(&phi)), phi, max_relative = 1e-9, epsilon = 1e-15);
+            assert_relative_eq!(
+                exp(&phi).matrix(),
+                Rotation3::new(phi).matrix(),
+                epsilon = 1e-12
+            );
+        }
+    }
+
+    #[test]
+    fn the_left_jacobian_maps_a_small_increment_to_the_left_perturbation() {
+        for phi in [Vector3::new(2e-6, -1e-6, 0.0), Vector3::new(0.4, -0.7, 0.2)] {
+            let delta = Vector3::new(1e-7, 2e-7, -1.5e-7);
+            let exact = log(&(exp(&(phi + delta)) * exp(&phi).inverse()));
+            let linear = left_jacobian(&phi) * delta;
+            assert_relative_eq!(exact, linear, epsilon = 1e-13);
+        }
+    }
+
+    #[test]
+    fn the_angle_between_two_rotations_is_the_norm_of_their_difference() {
+        let a = exp(&Vector3::new(0.1, 0.2, -0.3));
+        let d = Vector3::new(0.0, 0.05, 0.0);
+        assert_relative_eq!(angle_between(&(exp(&d) * a), &a), 0.05, epsilon = 1e-12);
+    }
+}
