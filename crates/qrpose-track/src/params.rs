@@ -32,8 +32,10 @@ pub struct TrackerParams {
     /// Mean time the motion stays in one model (steady, or manoeuvring), ms: the switch
     /// probability over dt is 1 − exp(−dt / mode_hold_ms). Default 500.
     pub mode_hold_ms: f64,
-    /// Factor on every per-frame pose covariance before it is fused (measurement noise);
-    /// 1 when the stated corner noise is right. Range (0, 10⁴].
+    /// Factor on the measurement noise: the corners' variance σ² (σ the solver's
+    /// `corner_sigma_px`) and the per-frame pose covariance a track starts from, which is
+    /// σ²·(JᵀJ)⁻¹ of the same corners. 1 when the stated corner noise is right; default 1,
+    /// range (0, 10⁴].
     pub measurement_inflation: f64,
     /// A measurement whose four corners have a squared Mahalanobis distance from the
     /// prediction (J at the update's optimum, 8 degrees of freedom) above this is not
