@@ -2,6 +2,7 @@
 // shows what came back. Conventions as docs/conventions.md: camera frame x right, y down,
 // z forward; pixels with integer coordinates at pixel centres; p_cam = R·p_marker + t.
 // Stable hooks for tests and people: ids, and data-field / data-value on every number.
+// The live camera mode (GET /v1/stream) is camera.js, which uses the helpers below.
 "use strict";
 
 const IMAGE_PATH = "/v1/pose/image";

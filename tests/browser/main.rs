@@ -3,13 +3,16 @@
 //! must be the API's and close to the render's ground truth, the overlay's axes must be the
 //! pose projected, the alternative pose must draw on request, a non-image file must show the
 //! problem's title and detail, and the page must load fast, from this server only, with no
-//! console error, every control labelled and keyboard use alone enough.
+//! console error, every control labelled and keyboard use alone enough. The live camera mode
+//! (a fake camera playing a rendered video, over `GET /v1/stream`) is tested in [`camera`].
 //!
 //! Needs `/usr/bin/chromium` and `/usr/bin/chromedriver` (Debian's `chromium` and
 //! `chromium-driver`: `.ci/run` installs them, and so do these tests when they are missing and
 //! `apt-get` can) and `curl`; fails without them.
-//! `QRPOSE_WRITE_SCREENSHOTS=1` writes the desktop and phone screenshots to `docs/img/`.
+//! `QRPOSE_WRITE_SCREENSHOTS=1` writes the desktop, phone and live camera screenshots to
+//! `docs/img/`.
 
+mod camera;
 #[path = "../support/mod.rs"]
 mod support;
 mod webdriver;
@@ -231,8 +234,8 @@ fn the_page_loads_fast_from_this_server_alone_with_every_control_labelled() {
     let resources = timing["resources"].as_array().expect("resources");
     assert_eq!(
         resources.len(),
-        2,
-        "the script and the style sheet: {resources:?}"
+        3,
+        "the two scripts and the style sheet: {resources:?}"
     );
     for url in resources {
         let url = url.as_str().expect("a URL");

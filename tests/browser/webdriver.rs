@@ -83,6 +83,15 @@ impl Browser {
     /// # Panics
     /// When Chromium or chromedriver is not installed: the test must fail, not pass.
     pub fn start(width: u32, height: u32) -> Self {
+        Self::start_with(width, height, &[])
+    }
+
+    /// As [`Self::start`], with more Chromium switches (`--use-fake-device-for-media-stream`
+    /// and the like).
+    ///
+    /// # Panics
+    /// As [`Self::start`].
+    pub fn start_with(width: u32, height: u32, switches: &[String]) -> Self {
         install_browser_once();
         for program in [CHROMIUM, CHROMEDRIVER] {
             assert!(
@@ -112,20 +121,29 @@ impl Browser {
             std::thread::sleep(Duration::from_millis(50));
         }
         let profile = super::support::scratch_dir(&format!("chromium-profile-{port}"));
+        let mut args: Vec<String> = [
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--disable-dev-shm-usage",
+            "--no-proxy-server",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-default-apps",
+            "--disable-sync",
+            "--no-first-run",
+            "--disable-extensions",
+            "--hide-scrollbars",
+        ]
+        .map(str::to_owned)
+        .to_vec();
+        args.push(format!("--window-size={width},{height}"));
+        args.push(format!("--user-data-dir={}", profile.display()));
+        args.extend_from_slice(switches);
         let capabilities = json!({"capabilities": {"alwaysMatch": {
             "browserName": "chrome",
             "goog:loggingPrefs": {"browser": "ALL"},
-            "goog:chromeOptions": {
-                "binary": CHROMIUM,
-                "args": [
-                    "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                    format!("--window-size={width},{height}"), "--no-proxy-server",
-                    "--disable-background-networking", "--disable-component-update",
-                    "--disable-default-apps", "--disable-sync", "--no-first-run",
-                    "--disable-extensions", "--hide-scrollbars",
-                    format!("--user-data-dir={}", profile.display()),
-                ],
-            },
+            "goog:chromeOptions": {"binary": CHROMIUM, "args": args},
         }}});
         let mut browser = Self {
             driver,
@@ -259,6 +277,14 @@ impl Browser {
             "POST",
             "/goog/cdp/execute",
             &json!({"cmd": "Emulation.setDeviceMetricsOverride", "params": params}),
+        );
+    }
+
+    /// Scrolls the element `css` selects to the top of the viewport.
+    pub fn scroll_to(&self, css: &str) {
+        self.run(
+            "document.querySelector(arguments[0]).scrollIntoView({block: 'start'});",
+            &[json!(css)],
         );
     }
 

@@ -1,7 +1,8 @@
-//! `GET /`: the setup page for integrators (README, Setup page), and its script and style
-//! sheet. All three are compiled into the binary from `assets/page/`; the page fetches
-//! nothing but these and the API of the same server, which its Content-Security-Policy
-//! enforces (`default-src 'self'`), so it works on a machine without network.
+//! `GET /`: the setup page for integrators (README, Setup page), and its scripts and style
+//! sheet. All four are compiled into the binary from `assets/page/`; the page fetches
+//! nothing but these and the API of the same server (its live camera mode opens the
+//! WebSocket `GET /v1/stream` of the same host and port), which its Content-Security-Policy
+//! enforces, so it works on a machine without network.
 
 use crate::http::state::AppState;
 use axum::Router;
@@ -13,15 +14,21 @@ use axum::routing::get;
 pub const PAGE_PATH: &str = "/";
 /// The script's path.
 pub const SCRIPT_PATH: &str = "/page/app.js";
+/// The live camera mode's script (streams the browser's camera to `GET /v1/stream`).
+pub const CAMERA_SCRIPT_PATH: &str = "/page/camera.js";
 /// The style sheet's path.
 pub const STYLE_PATH: &str = "/page/app.css";
 
 const PAGE_HTML: &str = include_str!("../../../assets/page/index.html");
 const SCRIPT_JS: &str = include_str!("../../../assets/page/app.js");
+const CAMERA_SCRIPT_JS: &str = include_str!("../../../assets/page/camera.js");
 const STYLE_CSS: &str = include_str!("../../../assets/page/app.css");
 
-/// Same-origin only: the page, its script and style, the API; photos are drawn from a
-/// `blob:` bitmap.
+/// Same-origin only: the page, its scripts and style, the API; photos are drawn from a
+/// `blob:` bitmap. `connect-src 'self'` also admits the WebSocket of the same host and port
+/// (`ws:` for an `http:` page, `wss:` for `https:`; CSP Level 3, "self" matching), which is
+/// all the live camera mode opens; the camera's picture is a `MediaStream`, not a fetched
+/// URL, so `media-src` stays `'none'`.
 pub const CONTENT_SECURITY_POLICY: &str = "default-src 'none'; script-src 'self'; \
     style-src 'self'; img-src 'self' blob: data:; connect-src 'self'; form-action 'none'; \
     base-uri 'none'; frame-ancestors 'none'";
@@ -65,13 +72,18 @@ async fn script() -> impl IntoResponse {
     asset("text/javascript; charset=utf-8", SCRIPT_JS)
 }
 
+async fn camera_script() -> impl IntoResponse {
+    asset("text/javascript; charset=utf-8", CAMERA_SCRIPT_JS)
+}
+
 async fn style() -> impl IntoResponse {
     asset("text/css; charset=utf-8", STYLE_CSS)
 }
 
-/// The page's script and style sheet (undocumented in OpenAPI, like the Swagger UI's files).
+/// The page's scripts and style sheet (undocumented in OpenAPI, like the Swagger UI's files).
 pub fn assets() -> Router<AppState> {
     Router::new()
         .route(SCRIPT_PATH, get(script))
+        .route(CAMERA_SCRIPT_PATH, get(camera_script))
         .route(STYLE_PATH, get(style))
 }
