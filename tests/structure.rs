@@ -237,3 +237,64 @@ fn no_commit_hash_in_the_readme_or_the_reference_pages() {
         "commit hashes belong in docs/measurements/ only: {cited:?}"
     );
 }
+
+/// The words serde's messages start with that once chose a problem's code (`missing_field`,
+/// `unknown_field`, `unknown_variant`): the code now comes from the typed error of
+/// `src/api/shape`, and no code outside tests reads them.
+const SERDE_MESSAGE_WORDS: [&str; 3] = ["missing field", "unknown field", "unknown variant"];
+
+/// The code of a source file without its tests: what comes before its first
+/// `#[cfg(test)]`, nothing for a file of tests (`tests.rs`, or under a `tests/` folder).
+fn code_outside_tests<'a>(path: &Path, text: &'a str) -> &'a str {
+    let is_tests = path.file_name().is_some_and(|n| n == "tests.rs")
+        || path.components().any(|c| c.as_os_str() == "tests");
+    if is_tests {
+        return "";
+    }
+    text.find("#[cfg(test)]").map_or(text, |end| &text[..end])
+}
+
+/// The string literals in `code` that start with one of [`SERDE_MESSAGE_WORDS`].
+fn serde_message_literals(code: &str) -> Vec<&'static str> {
+    SERDE_MESSAGE_WORDS
+        .iter()
+        .filter(|words| code.contains(&format!("\"{words}")))
+        .copied()
+        .collect()
+}
+
+#[test]
+fn the_serde_message_check_finds_message_matching_and_spares_tests() {
+    let matching = "if message.starts_with(\"unknown field\") {\n";
+    let path = Path::new("src/api/problem.rs");
+    assert_eq!(
+        serde_message_literals(code_outside_tests(path, matching)),
+        ["unknown field"]
+    );
+    let in_tests = format!("fn f() {{}}\n#[cfg(test)]\nmod tests {{ {matching} }}");
+    assert!(serde_message_literals(code_outside_tests(path, &in_tests)).is_empty());
+    let tests_file = Path::new("src/api/shape/tests.rs");
+    assert!(serde_message_literals(code_outside_tests(tests_file, matching)).is_empty());
+    let docs = "/// refused as `missing_field`, a missing field\n";
+    assert!(serde_message_literals(code_outside_tests(path, docs)).is_empty());
+}
+
+#[test]
+fn no_error_code_is_chosen_from_serdes_message_text() {
+    let mut files = Vec::new();
+    rust_files(&Path::new(ROOT).join("src"), &mut files);
+    assert!(files.len() > 40, "{} files", files.len());
+    let found: Vec<String> = files
+        .iter()
+        .flat_map(|file| {
+            let text = std::fs::read_to_string(file).expect("utf-8");
+            serde_message_literals(code_outside_tests(file, &text))
+                .into_iter()
+                .map(move |words| format!("{}: \"{words}", file.display()))
+        })
+        .collect();
+    assert!(
+        found.is_empty(),
+        "choose codes from crate::api::shape's typed errors, not serde's text: {found:?}"
+    );
+}

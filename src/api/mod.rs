@@ -20,6 +20,7 @@ pub mod problem;
 pub mod refusal;
 pub mod request;
 pub mod response;
+pub mod shape;
 pub mod site;
 
 pub use corners::estimate_corners;

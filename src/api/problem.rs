@@ -4,8 +4,16 @@
 //! status it maps to, and, where one field is at fault, `field` as a JSON pointer into the
 //! request (`/corners_px/2`, `/camera/fx_px`), the name of a query parameter or the name of a
 //! multipart part.
+//!
+//! Parse failures become problems here ([`parse_json`], [`parse_json_value`]): the detail is
+//! serde_json's message, and the code of a shape error is chosen from a typed error
+//! ([`shape::ShapeError`]), never from the message's text.
 
+use super::shape::{self, ShapeError, ShapeErrorKind};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use serde_json::error::Category;
 use utoipa::ToSchema;
 
 /// Stable machine-readable error codes. New codes may be added; existing ones never change.
@@ -224,74 +232,110 @@ impl Problem {
         }
     }
 
-    /// Classifies a JSON deserialisation error, with the path of the offending field.
-    pub fn from_json_error(err: &serde_path_to_error::Error<serde_json::Error>) -> Self {
-        let inner = err.inner();
-        let message = inner.to_string();
-        let code = match inner.classify() {
-            serde_json::error::Category::Data => {
-                if message.starts_with("missing field") {
-                    ErrorCode::MissingField
-                } else if message.starts_with("unknown field") {
-                    ErrorCode::UnknownField
-                } else if message.starts_with("unknown variant") {
-                    ErrorCode::UnknownVariant
-                } else {
-                    ErrorCode::InvalidType
-                }
-            }
-            _ => ErrorCode::MalformedJson,
-        };
-        let problem = Self::new(code, message.clone());
-        match json_pointer(err.path(), code, &message) {
-            Some(pointer) => problem.with_field(pointer),
-            None => problem,
+    /// Classifies `err`, met while parsing `bytes` as `T` with serde_json (as
+    /// [`parse_json`] does), naming the field at fault.
+    ///
+    /// The detail is serde_json's message, position included. A syntax or end-of-input
+    /// error is 400 `malformed_json`. For a shape error (serde_json's `Data` category) the
+    /// code comes from a typed second run: the bytes' first value is parsed into a
+    /// [`serde_json::Value`] ([`shape::value::parse_first_value`]: what follows it does not
+    /// bear on the error, and nesting a typed run could not have reached is left out) and
+    /// `T` is deserialised from it again through [`shape::value`], whose [`ShapeError`]
+    /// records which serde constructor refused what ([`Problem::of_shape`]).
+    pub fn from_json_error<T: DeserializeOwned>(
+        err: &serde_path_to_error::Error<serde_json::Error>,
+        bytes: &[u8],
+    ) -> Self {
+        let message = err.inner().to_string();
+        if err.inner().classify() != Category::Data {
+            return Self::new(ErrorCode::MalformedJson, message);
         }
+        let typed = shape::value::parse_first_value(bytes)
+            .ok()
+            .and_then(|value| shape::value::from_value::<T>(&value).err());
+        Self::of_shape(message, err.path(), typed)
+    }
+
+    /// A shape problem: `message` and `path` from the error the client sees, the code from
+    /// `typed`, the same error found by deserialising with [`ShapeError`].
+    ///
+    /// `missing_field` (the pointer then ends with the missing field's name, which serde's
+    /// path leaves out), `unknown_field` and `unknown_variant` have their own codes; every
+    /// other kind is `invalid_type`. When there is no typed error (the document could not
+    /// be parsed into a `Value` because it is malformed further on, or the second run
+    /// accepted it) or the typed error lies at
+    /// another path (a duplicate key, which a `Value` keeps only once), the code is
+    /// `invalid_type` at the first error's path. That is safe: it is the general code of a
+    /// body whose shape does not fit, sent with the same 422 status and the same detail
+    /// text, and no more specific code is claimed without a typed error to back it.
+    pub fn of_shape(
+        message: String,
+        path: &serde_path_to_error::Path,
+        typed: Option<serde_path_to_error::Error<ShapeError>>,
+    ) -> Self {
+        let pointer = json_pointer(path);
+        let kind = typed
+            .filter(|t| json_pointer(t.path()) == pointer)
+            .map(serde_path_to_error::Error::into_inner)
+            .map(ShapeError::into_kind);
+        let (code, pointer) = match kind {
+            Some(ShapeErrorKind::MissingField { field }) => (
+                ErrorCode::MissingField,
+                format!("{pointer}/{}", pointer_token(&field)),
+            ),
+            Some(ShapeErrorKind::UnknownField { .. }) => (ErrorCode::UnknownField, pointer),
+            Some(ShapeErrorKind::UnknownVariant { .. }) => (ErrorCode::UnknownVariant, pointer),
+            _ => (ErrorCode::InvalidType, pointer),
+        };
+        Self::new(code, message).with_field(pointer)
     }
 }
 
-/// The JSON pointer of a serde path. For a missing field serde's path ends at the parent,
-/// so the field's name is taken from the message ("missing field `size_mm`").
-fn json_pointer(
-    path: &serde_path_to_error::Path,
-    code: ErrorCode,
-    message: &str,
-) -> Option<String> {
+/// A key as one JSON pointer reference token (RFC 6901: `~` as `~0`, `/` as `~1`).
+fn pointer_token(key: &str) -> String {
+    key.replace('~', "~0").replace('/', "~1")
+}
+
+/// The JSON pointer of a serde path (`/marker/size_mm`, `/corners_px/2`).
+fn json_pointer(path: &serde_path_to_error::Path) -> String {
     use serde_path_to_error::Segment;
-    if code == ErrorCode::MalformedJson {
-        return None;
-    }
     let mut pointer = String::new();
     for segment in path.iter() {
         match segment {
             Segment::Seq { index } => pointer.push_str(&format!("/{index}")),
-            Segment::Map { key } => {
-                pointer.push_str(&format!("/{}", key.replace('~', "~0").replace('/', "~1")))
-            }
+            Segment::Map { key } => pointer.push_str(&format!("/{}", pointer_token(key))),
             Segment::Enum { variant } => pointer.push_str(&format!("/{variant}")),
             Segment::Unknown => {}
         }
     }
-    if code == ErrorCode::MissingField
-        && let Some(name) = message.split('`').nth(1)
-    {
-        pointer.push('/');
-        pointer.push_str(name);
-    }
-    Some(pointer)
+    pointer
 }
 
 /// Parses JSON into `T`, turning any failure into a [`Problem`] that names the field.
 ///
 /// # Errors
-/// A 400 problem for syntax errors, a 422 problem for shape errors.
-pub fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, Problem> {
+/// A 400 problem for syntax errors, a 422 problem for shape errors (see
+/// [`Problem::from_json_error`]).
+pub fn parse_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, Problem> {
     let mut de = serde_json::Deserializer::from_slice(bytes);
-    let value: T =
-        serde_path_to_error::deserialize(&mut de).map_err(|e| Problem::from_json_error(&e))?;
+    let value: T = serde_path_to_error::deserialize(&mut de)
+        .map_err(|e| Problem::from_json_error::<T>(&e, bytes))?;
     de.end()
         .map_err(|e| Problem::new(ErrorCode::MalformedJson, e.to_string()))?;
     Ok(value)
+}
+
+/// Deserialises `T` from a JSON document already parsed (a request assembled from several
+/// sources), with the problems of [`parse_json`]: serde_json's message as the detail, the
+/// code from a typed second run over the same value.
+///
+/// # Errors
+/// A 422 problem naming the field at fault.
+pub fn parse_json_value<T: DeserializeOwned>(value: &Value) -> Result<T, Problem> {
+    serde_path_to_error::deserialize(value).map_err(|e| {
+        let typed = shape::value::from_value::<T>(value).err();
+        Problem::of_shape(e.inner().to_string(), e.path(), typed)
+    })
 }
 
 #[cfg(test)]

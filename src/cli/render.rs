@@ -330,7 +330,7 @@ fn read_scene_file(path: &Path) -> Result<(MultiScene, Vec<CodeSpec>), ExitCode>
     })?;
     let mut deserializer = serde_json::Deserializer::from_str(&text);
     let file: SceneFile = serde_path_to_error::deserialize(&mut deserializer)
-        .map_err(|e| report_problem(&Problem::from_json_error(&e)))?;
+        .map_err(|e| report_problem(&Problem::from_json_error::<SceneFile>(&e, text.as_bytes())))?;
     file_scene(file).map_err(|p| report_problem(&p))
 }
 

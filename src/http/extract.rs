@@ -10,6 +10,7 @@
 use super::error::ApiError;
 use super::state::AppState;
 use crate::api::problem::{ErrorCode, Problem};
+use crate::api::shape::{self, ShapeError, ShapeErrorKind};
 use axum::body::{Body, Bytes, HttpBody};
 use axum::extract::{FromRequest, Request};
 use axum::http::{HeaderMap, header};
@@ -187,43 +188,45 @@ async fn read_limited(
 
 /// Parses a query string (without the `?`; `None` is an empty one) into `T`.
 ///
+/// The pairs are read as serde_urlencoded reads them, by [`shape::query`], whose typed
+/// [`ShapeError`] decides the code and names the parameter (never the message's text).
+///
 /// # Errors
 /// 422 `unknown_field` for a parameter `T` does not have and `unknown_variant` for a value
 /// outside an enumerated set (the codes of the same mistakes in a JSON body); 400
 /// `malformed_query` for a value that does not parse as its type, a parameter given twice or
-/// broken percent-encoding. `field` names the parameter.
+/// missing. `field` names the parameter.
 pub fn parse_query<T: DeserializeOwned>(query: Option<&str>) -> Result<T, ApiError> {
-    let parser = form_urlencoded::parse(query.unwrap_or_default().as_bytes());
-    let deserializer = serde_urlencoded::Deserializer::new(parser);
-    serde_path_to_error::deserialize(deserializer).map_err(|e| {
-        let message = e.inner().to_string();
-        let code = if message.starts_with("unknown field") {
-            ErrorCode::UnknownField
-        } else if message.starts_with("unknown variant") {
-            ErrorCode::UnknownVariant
-        } else {
-            ErrorCode::MalformedQuery
-        };
-        // The path is the parameter whose value failed; for an unknown or duplicate
-        // parameter serde names it in the message instead.
-        let path = e.path().to_string();
-        let field = if path.is_empty() || path == "." {
-            message.split('`').nth(1).map(str::to_owned)
-        } else {
-            Some(path)
-        };
-        let detail = match &field {
-            Some(name) if !message.contains(name.as_str()) => {
-                format!("query parameter {name}: {message}")
-            }
-            _ => message,
-        };
-        let problem = Problem::new(code, detail);
-        ApiError::from(match field {
-            Some(name) => problem.with_field(name),
-            None => problem,
-        })
-    })
+    shape::query::from_query(query.unwrap_or_default())
+        .map_err(|e| ApiError::from(query_problem(e.path(), e.inner())))
+}
+
+/// The problem of a query refused with `err` at `path` (the parameter whose value failed;
+/// empty when `err` names the parameter itself: a missing, unknown or duplicate one).
+fn query_problem(path: &serde_path_to_error::Path, err: &ShapeError) -> Problem {
+    let code = match err.kind() {
+        ShapeErrorKind::UnknownField { .. } => ErrorCode::UnknownField,
+        ShapeErrorKind::UnknownVariant { .. } => ErrorCode::UnknownVariant,
+        _ => ErrorCode::MalformedQuery,
+    };
+    let path = path.to_string();
+    let field = match err.kind().field() {
+        Some(name) => Some(name.to_owned()),
+        None if path.is_empty() || path == "." => None,
+        None => Some(path),
+    };
+    let message = err.to_string();
+    let detail = match &field {
+        Some(name) if !message.contains(name.as_str()) => {
+            format!("query parameter {name}: {message}")
+        }
+        _ => message,
+    };
+    let problem = Problem::new(code, detail);
+    match field {
+        Some(name) => problem.with_field(name),
+        None => problem,
+    }
 }
 
 /// A JSON body serialised elsewhere (on an estimation worker), sent as `application/json`.
@@ -373,6 +376,50 @@ mod tests {
                 "{query}: {problem:?}"
             );
         }
+    }
+
+    #[derive(Debug, serde::Deserialize)]
+    #[allow(dead_code)]
+    struct Required {
+        size_mm: f64,
+    }
+
+    #[test]
+    fn query_details_name_the_parameter_and_say_what_is_wrong() {
+        let cases = [
+            (
+                "size_mm=wide",
+                "query parameter size_mm: invalid float literal",
+            ),
+            ("count=1&count=2", "duplicate field `count`"),
+            ("size=5", "unknown field `size`, expected one of"),
+            (
+                "mode=slow",
+                "query parameter mode: unknown variant `slow`, expected `fast`",
+            ),
+        ];
+        for (query, detail) in cases {
+            let err = parse_query::<Query>(Some(query)).expect_err(query);
+            assert!(
+                err.problem().detail.starts_with(detail),
+                "{query}: {:?}",
+                err.problem()
+            );
+        }
+        let err = parse_query::<Required>(None).expect_err("a required parameter");
+        let problem = err.problem();
+        assert_eq!(
+            (
+                problem.code,
+                problem.field.as_deref(),
+                problem.detail.as_str()
+            ),
+            (
+                ErrorCode::MalformedQuery,
+                Some("size_mm"),
+                "missing field `size_mm`"
+            )
+        );
     }
 
     #[test]
