@@ -4,7 +4,10 @@
 //! The entry points are here: [`detect_within`] finds, reads and refines every code of an
 //! image within a [`Budget`] (effort, deadline, [`CancelFlag`]) and reports the passes that
 //! ran ([`PassLog`]); [`detect_codes`] does so at the default budget, [`find_candidates`]
-//! stops before refinement; [`pipeline::locate_markers`] adds each code's pose.
+//! stops before refinement; [`detect_in_regions`] reads only the regions a caller names
+//! ([`SearchRegion`]: where a video stream's tracks predict their codes);
+//! [`pipeline::locate_markers`] and [`pipeline::locate_markers_in_regions`] add each code's
+//! pose.
 //!
 //! The crate is grouped by what each part does:
 //!
@@ -15,7 +18,8 @@
 //!   with the `zxing-cpp` cargo feature), chosen by [`DetectorChoice`]; beside rxing's,
 //!   this crate's bit-for-bit rewrites of rxing's binarisers and finder-pattern search.
 //! - [`search`]: the `auto` strategy (whole-frame reads, then closer looks only where a
-//!   code may be), merging by position, reading again through the refined module grid.
+//!   code may be), the crop reads of given regions, merging by position, reading again
+//!   through the refined module grid.
 //! - [`refine`]: sub-pixel corners and finder corners from edge profiles and the module
 //!   grid, whatever the backend.
 //! - [`budget`], [`cancel`]: what detection may spend, and the log of what it did.
@@ -42,6 +46,7 @@ pub mod search;
 pub use backends::{Backend, Candidate, DetectError, Detector, DetectorChoice};
 pub use budget::{Budget, Effort, PassLog, PassReport};
 pub use cancel::CancelFlag;
+pub use search::SearchRegion;
 
 /// The corner-refinement results under their path of before the grouping: a caller with
 /// uncommitted work still names them so. Use [`refine`].
@@ -135,7 +140,44 @@ pub fn detect_within(
     let deadline = budget.deadline_for(image.pixels().len());
     let mut log = PassLog::with_cancel(deadline, budget.cancel.clone());
     let candidates = find_logged(image, choice, budget.effort, &mut log)?;
-    let codes = candidates
+    Ok(Detection {
+        codes: refined(image, candidates),
+        log,
+    })
+}
+
+/// Finds, reads and refines the QR symbols in the given `regions` of `image` only (a video
+/// stream's tracks predict where their codes are), within `budget`; nothing outside them
+/// is read. Each region is cut out (clipped to the image) and read until a pass decodes
+/// there, at a higher effort than `auto`'s first read of a whole frame: rxing at the
+/// crop's scale with the re-read through the refined module grid, then (`balanced`,
+/// `thorough`) the global-histogram binariser, contrast-stretched, inverted, sharpened
+/// and double-scale copies, and a quadruple-scale one of a small crop. The passes are
+/// logged as `track crop K ...` (K: the region's index). Codes found twice (overlapping
+/// regions) are merged; corners are refined on the whole image and given in its pixels.
+///
+/// The first read always runs; before each further one the deadline
+/// ([`Budget::deadline_for`] the whole image) and the cancel flag are checked, so a spent
+/// or cancelled budget stops between regions. With no region, or none in the image,
+/// nothing is read.
+#[must_use]
+pub fn detect_in_regions(
+    image: &GrayImage,
+    regions: &[SearchRegion],
+    budget: &Budget,
+) -> Detection {
+    let deadline = budget.deadline_for(image.pixels().len());
+    let mut log = PassLog::with_cancel(deadline, budget.cancel.clone());
+    let candidates = search::given::find_in_regions(image, regions, budget.effort, &mut log);
+    Detection {
+        codes: refined(image, candidates),
+        log,
+    }
+}
+
+/// `candidates` with their corners refined on `image`, in order.
+fn refined(image: &GrayImage, candidates: Vec<Candidate>) -> Vec<DetectedCode> {
+    candidates
         .into_iter()
         .map(|candidate| {
             let refinement = refine_corners(image, &candidate.corners_px, candidate.module_count);
@@ -144,8 +186,7 @@ pub fn detect_within(
                 refinement,
             }
         })
-        .collect();
-    Ok(Detection { codes, log })
+        .collect()
 }
 
 /// Finds, reads and refines every QR symbol in `image` at `balanced` effort with its

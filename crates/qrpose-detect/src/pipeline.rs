@@ -1,7 +1,8 @@
 //! From a photo to poses, as one library call: [`locate_markers`] finds and reads every QR
 //! code in a decoded image, refines its corners, and solves each code's pose. This is what
 //! `POST /v1/pose/image` and `qrpose estimate --image` run; the wire layer only turns its
-//! result into JSON.
+//! result into JSON. [`locate_markers_in_regions`] does the same in the regions where a
+//! video stream's tracks predict their codes, reading nothing else.
 //!
 //! A code whose pose cannot be solved is still returned, with a typed [`MarkerError`] in
 //! place of the pose; it does not fail the other codes.
@@ -18,7 +19,8 @@
 use crate::refine::corners::{Lens, RefineStatus, refine_corners_through};
 use crate::refine::finder_marker_points;
 use crate::{
-    Budget, DetectError, DetectedCode, DetectorChoice, PassReport, decode::GrayImage, detect_within,
+    Budget, DetectError, DetectedCode, Detection, DetectorChoice, PassReport, SearchRegion,
+    decode::GrayImage, detect_in_regions, detect_within,
 };
 use qrpose_core::estimate::{
     EstimateError, PoseEstimate, ValidSolver, estimate_planar_points, estimate_pose,
@@ -150,6 +152,34 @@ pub fn locate_markers<S: MarkerSizes>(
 ) -> Result<Located<S::Source>, DetectError> {
     let started = Instant::now();
     let detection = detect_within(image, options.detector, &options.budget)?;
+    Ok(located(image, setup, options.points, detection, started))
+}
+
+/// [`locate_markers`] restricted to `regions` of `image` ([`detect_in_regions`]: crops of
+/// the places where a stream's tracks predict their codes, read at a higher effort there,
+/// nothing outside them), within `options.budget`, solving from `options.points`. The
+/// regions are read by `auto`'s backends whatever `options.detector` says.
+#[must_use]
+pub fn locate_markers_in_regions<S: MarkerSizes>(
+    image: &GrayImage,
+    setup: &Setup<S>,
+    regions: &[SearchRegion],
+    options: &Options,
+) -> Located<S::Source> {
+    let started = Instant::now();
+    let detection = detect_in_regions(image, regions, &options.budget);
+    located(image, setup, options.points, detection, started)
+}
+
+/// The codes of `detection` (begun at `started`) refined through the camera's lens when it
+/// has one, each solved at its size from `points`.
+fn located<S: MarkerSizes>(
+    image: &GrayImage,
+    setup: &Setup<S>,
+    points: Points,
+    detection: Detection,
+    started: Instant,
+) -> Located<S::Source> {
     let (codes, log) = (detection.codes, detection.log);
     let codes = refined_through_lens(image, codes, &setup.camera);
     let detect_ms = ms_since(started);
@@ -160,7 +190,7 @@ pub fn locate_markers<S: MarkerSizes>(
             let solving = Instant::now();
             let marker = setup.sizes.marker_for(code.candidate.text.as_deref());
             let (points_used, pose) = match &marker {
-                Some((size, _)) => solve(&code, setup, size, options.points),
+                Some((size, _)) => solve(&code, setup, size, points),
                 None => (Points::Corners, Err(MarkerError::UnknownSize)),
             };
             LocatedMarker {
@@ -172,13 +202,13 @@ pub fn locate_markers<S: MarkerSizes>(
             }
         })
         .collect();
-    Ok(Located {
+    Located {
         markers,
         detect_ms,
         passes: log.passes,
         budget_exhausted: log.budget_exhausted,
         estimate_ms: ms_since(started),
-    })
+    }
 }
 
 /// `codes` with their corners refined again through the lens of `camera`, when it has one;

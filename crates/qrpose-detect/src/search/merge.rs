@@ -10,7 +10,7 @@ use crate::search::reread;
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// Centroid of four corners.
-fn centroid(c: &[PixelPoint; 4]) -> PixelPoint {
+pub(crate) fn centroid(c: &[PixelPoint; 4]) -> PixelPoint {
     PixelPoint::new(
         c.iter().map(PixelPoint::u).sum::<f64>() / 4.0,
         c.iter().map(PixelPoint::v).sum::<f64>() / 4.0,

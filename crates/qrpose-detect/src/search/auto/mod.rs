@@ -49,7 +49,7 @@ use crate::search::region::{Crop, Region, unread_regions};
 use crate::{Backend, Candidate, Detector};
 use qrpose_core::geometry::frames::PixelPoint;
 
-mod passes;
+pub(in crate::search) mod passes;
 mod sharpened;
 use passes::{decoded, look_closer, read_crop, rescale, variants};
 use sharpened::{find_lone, find_sharpened, reads_small_codes};

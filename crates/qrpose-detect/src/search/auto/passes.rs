@@ -20,7 +20,7 @@ use super::UPSCALE_MAX_SIDE_PX;
 /// One second pass of `auto`: a detector on a variant of the image, built only when the
 /// pass runs (inside its timed [`PassLog`] entry, after the deadline was checked), and the
 /// scale that maps the variant's pixels back (source px per variant px).
-pub(super) struct SecondPass<'a> {
+pub(in crate::search) struct SecondPass<'a> {
     pub(super) name: &'static str,
     /// The backend named in the log before `name`, where two read the same variant.
     pub(super) backend: Option<Backend>,
@@ -32,7 +32,7 @@ pub(super) struct SecondPass<'a> {
 }
 
 impl<'a> SecondPass<'a> {
-    pub(super) fn new(
+    pub(in crate::search) fn new(
         name: &'static str,
         detector: Option<Box<dyn Detector>>,
         scale: f64,
@@ -57,7 +57,7 @@ impl<'a> SecondPass<'a> {
     /// Runs the pass, logged as `prefix` + its name, when the deadline allows and its
     /// variant exists; `read` turns the detector's candidates on the variant into the
     /// caller's. `None` when the deadline has passed (nothing was built).
-    pub(super) fn run(
+    pub(in crate::search) fn run(
         self,
         prefix: &str,
         log: &mut PassLog,
@@ -114,7 +114,7 @@ pub(super) fn double_sharpened(
 /// then an unsharp mask of [`SHARPEN_QUAD_SIGMA_PX`] source px and [`SHARPEN_QUAD_AMOUNT`].
 /// Codes of 1.5-2 px per module under blur form a triple at double scale whose sampled grid
 /// still does not decode; at four times the pixels rxing's finder-centred sampling does.
-pub(super) fn quad_sharpened(
+pub(in crate::search) fn quad_sharpened(
     image: &GrayImage,
     detector: Option<Box<dyn Detector>>,
 ) -> Option<SecondPass<'_>> {
@@ -140,7 +140,7 @@ pub(crate) const SHARPEN_QUAD_AMOUNT: f64 = 2.0;
 
 /// What a pass on a crop found, in the source's pixels: `detector` on `variant` (`scale`
 /// crop px per variant px), mapped back through `crop`.
-pub(super) fn read_crop(
+pub(in crate::search) fn read_crop(
     crop: &Crop,
     detector: &dyn Detector,
     variant: &GrayImage,
@@ -234,7 +234,7 @@ pub(super) fn rescale(mut c: Candidate, scale: f64) -> Candidate {
 }
 
 /// Decoded symbols in a pass's result.
-pub(super) fn decoded(found: &[Candidate]) -> usize {
+pub(in crate::search) fn decoded(found: &[Candidate]) -> usize {
     found.iter().filter(|c| c.payload.is_some()).count()
 }
 
@@ -263,7 +263,7 @@ fn zxing_cpp_variants(image: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
 
 /// Step 3's variants of the whole frame: the default build's [`second_passes`], then a
 /// zxing-cpp build's.
-pub(super) fn variants(image: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
+pub(in crate::search) fn variants(image: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
     let mut passes = second_passes(image, default_for(best));
     passes.extend(zxing_cpp_variants(image, best));
     passes
@@ -272,7 +272,7 @@ pub(super) fn variants(image: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> 
 /// The passes of step 2 on one crop, cheapest first: the default build's variants of
 /// [`second_passes`], then rqrr (its own finder search; the slowest, 20-30 ms even on a
 /// small crop), then a zxing-cpp build's variants.
-pub(super) fn look_closer(crop: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
+pub(in crate::search) fn look_closer(crop: &GrayImage, best: Backend) -> Vec<SecondPass<'_>> {
     let mut passes = second_passes(crop, default_for(best));
     passes.extend(SecondPass::new(
         "rqrr",
