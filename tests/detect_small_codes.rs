@@ -1,6 +1,6 @@
 //! Small blurred codes that show `auto` only two of their three finder patterns (issue 12):
-//! `balanced` reads them on a crop around the pair (`crates/qrpose-detect/src/pairs.rs`),
-//! not by reading the whole frame again.
+//! `balanced` reads them on a crop around the pair
+//! (`crates/qrpose-detect/src/search/pairs.rs`), not by reading the whole frame again.
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use qrpose::detect::decode::{DecodeLimits, GrayImage, decode_gray};
