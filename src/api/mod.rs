@@ -22,6 +22,7 @@ pub mod request;
 pub mod response;
 pub mod shape;
 pub mod site;
+pub mod stream;
 
 pub use corners::estimate_corners;
 

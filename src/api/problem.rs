@@ -107,6 +107,10 @@ pub enum ErrorCode {
     Timeout,
     /// 503: the service is shutting down and takes no new work; retry on another instance.
     ShuttingDown,
+    /// 422: a tracker parameter of `GET /v1/stream` is outside its documented range.
+    InvalidTrackerParameter,
+    /// 426: `GET /v1/stream` asked for without a WebSocket upgrade.
+    UpgradeRequired,
     /// 500: a fault of the service, never of the request.
     Internal,
 }
@@ -122,6 +126,7 @@ impl ErrorCode {
             ImageTooLarge | PayloadTooLarge => 413,
             UnsupportedMediaType => 415,
             Overloaded | Timeout | ShuttingDown => 503,
+            UpgradeRequired => 426,
             Internal => 500,
             _ => 422,
         }
@@ -170,6 +175,8 @@ impl ErrorCode {
             Overloaded => "Service overloaded",
             Timeout => "Request timed out",
             ShuttingDown => "Shutting down",
+            InvalidTrackerParameter => "Invalid tracker parameter",
+            UpgradeRequired => "WebSocket upgrade required",
             Internal => "Internal error",
         }
     }

@@ -12,10 +12,12 @@ use qrpose_core::estimate::PoseEstimate;
 use qrpose_core::geometry::marker::Marker;
 use qrpose_detect::cancel::CancelFlag;
 use qrpose_detect::decode::{self, DecodeError, GrayImage};
+
 use qrpose_detect::pipeline::{
-    LocatedMarker, MarkerError, Points, locate_markers, observed_points,
+    Located, LocatedMarker, MarkerError, Points, locate_markers, locate_markers_in_regions,
+    observed_points,
 };
-use qrpose_detect::{DetectError, DetectedCode, PassReport};
+use qrpose_detect::{DetectError, DetectedCode, PassReport, SearchRegion};
 use qrpose_site::SizeSource;
 use std::time::Instant;
 
@@ -115,6 +117,18 @@ pub fn estimate_decoded(
         solver: pose.solver,
     };
     let located = locate_markers(image, &detect_setup, &options)?;
+    Ok(answer_of_located(setup, image, located, decode_ms))
+}
+
+/// The answer of what the detector located in `image`: each code with its prior and its
+/// site frames, and the fused localisation.
+fn answer_of_located(
+    setup: &ImageSetup,
+    image: &GrayImage,
+    located: Located<SizeSource>,
+    decode_ms: f64,
+) -> ImageAnswer {
+    let pose = &setup.pose;
     let started = Instant::now();
     let frames = SiteFrames {
         site: pose.site.as_deref(),
@@ -135,7 +149,7 @@ pub fn estimate_decoded(
         })
         .collect();
     let localization = localize(&mapped);
-    Ok(ImageAnswer {
+    ImageAnswer {
         width_px: image.width(),
         height_px: image.height(),
         markers,
@@ -147,7 +161,7 @@ pub fn estimate_decoded(
             estimate_ms: located.estimate_ms + ms_since(started),
             passes: located.passes,
         },
-    })
+    }
 }
 
 /// One located code with its prior applied and its pose carried into the site's frames.
@@ -194,4 +208,50 @@ fn answer_of(
 
 fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Standard deviations of a track's predicted corners added around its region, on top of
+/// the quiet zone: a code is inside its crop with a probability of 99.7 % per corner.
+const REGION_SIGMAS: f64 = 3.0;
+
+/// Room around a predicted code for its quiet zone (4 modules: a tenth or more of the side
+/// of every version up to 10) and for the crop reads, which fail on a code cut at its edge,
+/// as a share of the code's longest predicted side.
+const REGION_QUIET_SHARE: f64 = 0.3;
+
+/// The crop around a track's predicted corners ([`REGION_SIGMAS`], [`REGION_QUIET_SHARE`]).
+fn search_region(region: &qrpose_track::PredictedRegion) -> SearchRegion {
+    let c = &region.corners_px;
+    let longest_side_px = (0..4)
+        .map(|i| (c[i].0 - c[(i + 1) % 4].0).norm())
+        .fold(0.0, f64::max);
+    SearchRegion::Quad {
+        corners_px: *c,
+        margin_px: REGION_SIGMAS * region.corner_sigma_px + REGION_QUIET_SHARE * longest_side_px,
+    }
+}
+
+/// [`estimate_decoded`] restricted to crops around `regions`, the predicted places of a
+/// stream's tracks ([`qrpose_detect::detect_in_regions`]): nothing outside them is read.
+///
+/// # Errors
+/// None today (the crop reads use `auto`'s backends, always built); the signature is
+/// [`estimate_decoded`]'s.
+pub(super) fn estimate_in_regions(
+    setup: &ImageSetup,
+    image: &GrayImage,
+    decode_ms: f64,
+    regions: &[qrpose_track::PredictedRegion],
+    cancel: CancelFlag,
+) -> Result<ImageAnswer, ImageError> {
+    let pose = &setup.pose;
+    let options = setup.detect.options(image.pixels().len(), cancel);
+    let detect_setup = qrpose_detect::pipeline::Setup {
+        camera: pose.camera,
+        sizes: pose.sizes(),
+        solver: pose.solver,
+    };
+    let crops: Vec<SearchRegion> = regions.iter().map(search_region).collect();
+    let located = locate_markers_in_regions(image, &detect_setup, &crops, &options);
+    Ok(answer_of_located(setup, image, located, decode_ms))
 }

@@ -8,6 +8,7 @@
 //! |---|---|
 //! | [`estimate_corners`] | `POST /v1/pose/corners`, `qrpose estimate REQUEST.json` |
 //! | [`estimate_image`] | `POST /v1/pose/image` (and `/annotated`), `qrpose estimate --image` |
+//! | [`TrackSession::frame`] | each frame of `GET /v1/stream`, `qrpose track` |
 //!
 //! Each operation takes the loaded site, if any, inside its [`Setup`], and returns a domain
 //! answer that `api::` maps to JSON. Nothing here names HTTP, JSON or a query parameter:
@@ -24,9 +25,14 @@ mod frames;
 mod image;
 mod prior;
 mod setup;
+mod track;
 
 pub use corners::{CornersAnswer, CornersError, estimate_corners};
 pub use frames::{InFrames, Localization, SiteFrames};
 pub use image::{ImageAnswer, ImageError, MarkerAnswer, Timing, estimate_decoded, estimate_image};
 pub use prior::Prior;
 pub use setup::{DetectSetup, ImageLimits, ImageSetup, Setup, SizeResolver, Sizing};
+pub use track::{
+    DEFAULT_FULL_SEARCH_EVERY, FrameIn, Search, TrackAnswer, TrackSession, TrackSetup,
+    TrackSetupError,
+};

@@ -11,6 +11,7 @@ mod render;
 mod serve;
 mod simulate;
 mod site;
+mod track;
 
 use clap::{Parser, Subcommand};
 use qrpose::api::{
@@ -45,6 +46,9 @@ pub enum Command {
     Serve(qrpose::config::ServeArgs),
     /// Print the OpenAPI document (what `openapi/openapi.json` holds).
     Openapi(openapi::OpenapiArgs),
+    /// Print the AsyncAPI document of the stream's messages (what `openapi/asyncapi.json`
+    /// holds).
+    Asyncapi(openapi::OpenapiArgs),
     /// Exit 0 when the service's /healthz answers 200 (for container health checks).
     Healthcheck(healthcheck::HealthcheckArgs),
     /// Render a synthetic photo of a QR code at a given pose, or a video of a camera moving
@@ -53,6 +57,9 @@ pub enum Command {
     /// Site files (docs/site.md): `qrpose site check FILE` validates one and prints what it
     /// resolves to.
     Site(site::SiteArgs),
+    /// Track codes over a sequence of frames: one JSON line per frame, what `GET /v1/stream`
+    /// answers for it.
+    Track(track::TrackArgs),
 }
 
 /// A command-line mistake in one of `estimate --image`'s parameters as the problem document
@@ -104,8 +111,10 @@ pub fn run(cli: Cli) -> ExitCode {
         }),
         Command::Serve(args) => serve::run(args),
         Command::Openapi(args) => openapi::run(&args),
+        Command::Asyncapi(args) => openapi::run_asyncapi(&args),
         Command::Healthcheck(args) => healthcheck::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Site(args) => site::run(&args),
+        Command::Track(args) => track::run(&args),
     }
 }

@@ -1,18 +1,37 @@
 //! `qrpose openapi [--site]`: prints the OpenAPI document of a server without a site (what
-//! `openapi/openapi.json` holds) or with one (`openapi/openapi-site.json`).
+//! `openapi/openapi.json` holds) or with one (`openapi/openapi-site.json`); `qrpose asyncapi
+//! [--site]` the AsyncAPI document of its stream (`openapi/asyncapi.json`).
 
 use clap::Args;
 use qrpose::detect::Backend;
 use qrpose::http::openapi::{Served, openapi_json};
 use std::process::ExitCode;
 
-/// Arguments of `openapi`.
+/// Arguments of `openapi` and `asyncapi`.
 #[derive(Debug, Args)]
 pub struct OpenapiArgs {
     /// The document of a server with a site loaded (`qrpose serve --site`): cameras by id,
     /// marker sizes optional.
     #[arg(long)]
     pub site: bool,
+}
+
+/// Runs `asyncapi`: the stream's AsyncAPI document of this build.
+pub fn run_asyncapi(args: &OpenapiArgs) -> ExitCode {
+    let served = Served {
+        site: args.site,
+        zxing_cpp: Backend::ZxingCpp.is_built(),
+    };
+    match qrpose::http::openapi::asyncapi::asyncapi_json(served) {
+        Ok(json) => {
+            print!("{json}");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("qrpose asyncapi: cannot serialise the document: {e}");
+            ExitCode::FAILURE
+        }
+    }
 }
 
 /// Runs `openapi`: the document of this build.

@@ -6,6 +6,10 @@
 //! through [`Settings::try_from`] (or [`Settings::default`], the validated defaults), so the
 //! rest of the service never re-checks a value.
 
+mod stream;
+
+pub use stream::{StreamArgs, StreamSettings};
+
 use clap::{Args, ValueEnum};
 use std::net::SocketAddr;
 use std::num::NonZeroUsize;
@@ -152,6 +156,9 @@ pub struct ServeArgs {
     #[arg(long, env = "QRPOSE_SITE")]
     pub site: Option<std::path::PathBuf>,
     // ---- end of site
+    /// The limits of stream sessions (`GET /v1/stream`).
+    #[command(flatten)]
+    pub stream: StreamArgs,
 }
 
 impl Default for ServeArgs {
@@ -176,6 +183,7 @@ impl Default for ServeArgs {
             max_inflight_body_bytes: None,
             // Site (issue 14).
             site: None,
+            stream: StreamArgs::default(),
         }
     }
 }
@@ -239,6 +247,8 @@ pub struct Settings {
     /// The site file, loaded at start and on reload.
     pub site: Option<std::path::PathBuf>,
     // ---- end of site
+    /// The limits of stream sessions.
+    pub stream: StreamSettings,
 }
 
 impl Default for Settings {
@@ -265,6 +275,7 @@ impl Default for Settings {
             max_inflight_body_bytes: default_inflight_body_bytes(cpus, DEFAULT_BODY_LIMIT_BYTES),
             // Site (issue 14).
             site: None,
+            stream: StreamSettings::default(),
         }
     }
 }
@@ -393,6 +404,7 @@ impl TryFrom<ServeArgs> for Settings {
             max_inflight_body_bytes: 0,
             // Site (issue 14): the file is read by the caller, which owns the exit code.
             site: args.site,
+            stream: StreamSettings::try_from(&args.stream)?,
         }
         .with_memory_budget(args.max_inflight_pixels, args.max_inflight_body_bytes)
     }

@@ -23,6 +23,7 @@ pub mod openapi;
 pub mod queue;
 pub mod routes;
 pub mod state;
+pub mod stream;
 
 pub use state::{AppState, StateError};
 
@@ -43,7 +44,9 @@ use tower_http::trace::{DefaultOnResponse, TraceLayer};
 /// The application: every route, the Swagger UI, the 404/405 fallbacks and the middleware.
 pub fn router(state: AppState) -> Router {
     let (routes, _) = openapi::api_router().split_for_parts();
+    // The WebSocket stream is described by the AsyncAPI document, not the OpenAPI one.
     let app = routes
+        .route(stream::PATH, axum::routing::get(stream::stream))
         .merge(routes::docs::swagger_ui())
         .merge(routes::page::assets())
         .method_not_allowed_fallback(method_not_allowed)
@@ -114,6 +117,7 @@ where
     };
     let lifecycle = state.lifecycle.clone();
     let metrics = state.metrics.connections();
+    let streams = state.streams.clone();
     let on_shutdown = move || {
         lifecycle.start_draining();
         tracing::info!(
@@ -129,7 +133,19 @@ where
         shutdown,
         on_shutdown,
     )
-    .await
+    .await?;
+    // Upgraded connections (stream sessions) left the connection loop when they upgraded;
+    // the shutdown closed them (1001): wait for their last answers and close frames.
+    if tokio::time::timeout(limits.shutdown_grace, streams.all_closed())
+        .await
+        .is_err()
+    {
+        tracing::warn!(
+            open = streams.open(),
+            "stream sessions still open after the grace period"
+        );
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -7,17 +7,27 @@ use qrpose_site::{Site, SiteError};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError, RwLock};
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
+use tokio_util::sync::CancellationToken;
 
 /// Whether the service still takes new work.
 #[derive(Debug, Clone, Default)]
 pub struct Lifecycle {
     draining: Arc<AtomicBool>,
+    shutdown: CancellationToken,
 }
 
 impl Lifecycle {
-    /// From now on `/readyz` answers 503 `shutting_down`.
+    /// From now on `/readyz` answers 503 `shutting_down`, and open stream sessions close
+    /// (1001).
     pub fn start_draining(&self) {
         self.draining.store(true, Ordering::Relaxed);
+        self.shutdown.cancel();
+    }
+
+    /// Cancelled when a shutdown begins.
+    pub fn shutdown(&self) -> &CancellationToken {
+        &self.shutdown
     }
 
     /// Whether a shutdown has begun.
@@ -87,6 +97,42 @@ impl SiteStore {
     }
 }
 
+/// The stream sessions open: at most `--max-stream-sessions`, each holding a place until
+/// it ends, and a shutdown waits for the last place to come back.
+#[derive(Debug, Clone)]
+pub struct StreamSessions {
+    places: Arc<Semaphore>,
+    max: usize,
+}
+
+impl StreamSessions {
+    /// Room for `max` sessions.
+    pub fn new(max: usize) -> Self {
+        Self {
+            places: Arc::new(Semaphore::new(max)),
+            max,
+        }
+    }
+
+    /// A place for one more session, or `None` when `max` are open.
+    pub fn try_open(&self) -> Option<OwnedSemaphorePermit> {
+        Arc::clone(&self.places).try_acquire_owned().ok()
+    }
+
+    /// Sessions open now.
+    pub fn open(&self) -> usize {
+        self.max - self.places.available_permits()
+    }
+
+    /// Waits until no session is open.
+    pub async fn all_closed(&self) {
+        let count = u32::try_from(self.max).unwrap_or(u32::MAX);
+        if let Ok(all) = self.places.acquire_many(count).await {
+            drop(all);
+        }
+    }
+}
+
 /// Why the state could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum StateError {
@@ -111,6 +157,8 @@ pub struct AppState {
     pub lifecycle: Lifecycle,
     /// The loaded site.
     pub site: SiteStore,
+    /// The stream sessions open.
+    pub streams: StreamSessions,
 }
 
 impl AppState {
@@ -144,12 +192,14 @@ impl AppState {
         .with_pixel_budget(settings.max_inflight_pixels)
         .with_body_budget(settings.max_inflight_body_bytes);
         let site = SiteStore::new(settings.site.clone(), site);
+        let streams = StreamSessions::new(settings.stream.max_sessions);
         Ok(Self {
             settings: Arc::new(settings),
             queue,
             metrics,
             lifecycle: Lifecycle::default(),
             site,
+            streams,
         })
     }
 

@@ -19,3 +19,4 @@ mod saturation;
 mod shutdown;
 mod site;
 mod site_reload;
+mod stream;

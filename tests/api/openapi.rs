@@ -288,3 +288,37 @@ fn documented_ranges_are_the_validators_own() {
         Some(f64::from(MAX_ITERATIONS_LIMIT))
     );
 }
+
+const COMMITTED_ASYNCAPI: &str = include_str!("../../openapi/asyncapi.json");
+
+#[tokio::test]
+async fn the_asyncapi_document_is_committed_printed_and_served() {
+    // Arrange
+    let app = spawn_app().await;
+    let current =
+        qrpose::http::openapi::asyncapi::asyncapi_json(committed(false)).expect("a document");
+    let this_build = qrpose::http::openapi::asyncapi::asyncapi_json(Served {
+        site: false,
+        zxing_cpp: Backend::ZxingCpp.is_built(),
+    })
+    .expect("a document");
+
+    // Act
+    let served = app.get("/asyncapi.json").await.text().await.expect("text");
+    let printed = tokio::process::Command::new(env!("CARGO_BIN_EXE_qrpose"))
+        .arg("asyncapi")
+        .output()
+        .await
+        .expect("qrpose runs");
+
+    // Assert
+    assert!(
+        current == COMMITTED_ASYNCAPI,
+        "openapi/asyncapi.json is out of date: cargo run -- asyncapi > openapi/asyncapi.json"
+    );
+    assert!(served == this_build, "GET /asyncapi.json differs");
+    assert!(
+        String::from_utf8_lossy(&printed.stdout) == this_build,
+        "qrpose asyncapi differs"
+    );
+}

@@ -48,13 +48,6 @@ pub use budget::{Budget, Effort, PassLog, PassReport};
 pub use cancel::CancelFlag;
 pub use search::SearchRegion;
 
-/// The corner-refinement results under their path of before the grouping: a caller with
-/// uncommitted work still names them so. Use [`refine`].
-#[doc(hidden)]
-pub mod corners {
-    pub use crate::refine::{RefineStatus, Refinement};
-}
-
 use backends::detector_for;
 use qrpose_core::geometry::frames::PixelPoint;
 use raster::GrayImage;

@@ -8,8 +8,8 @@ use crate::api::refusal::problem_from_marker_error;
 use crate::api::response::PoseResponse;
 use crate::app::{ImageAnswer, ImageSetup, MarkerAnswer};
 use crate::detect::{
-    corners::RefineStatus,
     pipeline::{MarkerError, Points},
+    refine::RefineStatus,
 };
 use crate::geometry::{camera::Camera, frames::PixelPoint};
 use base64::Engine;
@@ -98,6 +98,11 @@ pub struct MarkerResultDto {
     pub pose: Option<PoseResponse>,
     /// Why `pose` is null: the problem document of this marker alone.
     pub problem: Option<Problem>,
+    /// Stream answers only (`GET /v1/stream`): the track this code was assigned to, null if
+    /// none. Absent from `POST /v1/pose/image` answers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<String>, example = "t1")]
+    pub track_id: Option<Option<String>>,
 }
 
 /// `POST /v1/pose/image` response.
@@ -146,6 +151,7 @@ impl MarkerResultDto {
             points_used: m.points_used.into(),
             pose,
             problem,
+            track_id: None,
         }
     }
 }
@@ -239,7 +245,7 @@ mod tests {
     use super::*;
     use crate::api::problem::ErrorCode;
     use crate::app::InFrames;
-    use crate::detect::corners::Refinement;
+    use crate::detect::refine::Refinement;
     use crate::detect::{Backend, Candidate, DetectedCode};
     use crate::estimate::{PoseEstimate, ValidSolver, estimate_pose};
     use crate::geometry::{

@@ -152,7 +152,11 @@ struct Shared {
     closing: CancellationToken,
 }
 
-type Http1Connection = http1::Connection<TokioIo<WatchedIo>, Tracked>;
+/// A connection that may be upgraded (`GET /v1/stream`): once the `101 Switching
+/// Protocols` is written, the connection's future ends and the socket belongs to the
+/// session, which has its own limits (`--max-stream-sessions`, its idle timeout) and closes
+/// at shutdown; it no longer counts against `--max-connections`.
+type Http1Connection = http1::UpgradeableConnection<TokioIo<WatchedIo>, Tracked>;
 
 /// Drives one connection and closes it when a limit says so. Everything is checked on each
 /// poll of the connection's task (a few uncontended operations), so a request costs no
@@ -250,7 +254,7 @@ async fn serve_connection(tcp: TcpStream, shared: Arc<Shared>, permit: OwnedSema
     // connection is idle, so it cannot tell the two apart).
     builder.header_read_timeout(Option::<Duration>::None);
     let driver = Driver {
-        connection: Box::pin(builder.serve_connection(io, service)),
+        connection: Box::pin(builder.serve_connection(io, service).with_upgrades()),
         activity,
         limits: shared.limits,
         metrics: shared.metrics.clone(),

@@ -15,6 +15,7 @@
 //! `GET /openapi.json` is served from here, rendered once per configuration: the document is
 //! made from the routes, so the route that serves it lives with it rather than among them.
 
+pub mod asyncapi;
 mod forms;
 mod query;
 mod requests;
@@ -101,6 +102,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(site::reload_site))
         .routes(routes!(metrics::metrics))
         .routes(routes!(serve_openapi_json))
+        .routes(routes!(serve_asyncapi_json))
 }
 
 /// The OpenAPI document as utoipa derives it from the routes and the DTOs; what is served
@@ -158,4 +160,34 @@ mod tests {
             }
         }
     }
+}
+
+/// The stream's messages, rendered once per configuration.
+fn rendered_asyncapi(served: Served) -> &'static Result<Bytes, String> {
+    static DOCUMENTS: [OnceLock<Result<Bytes, String>>; 4] = [const { OnceLock::new() }; 4];
+    let slot = usize::from(served.site) * 2 + usize::from(served.zxing_cpp);
+    DOCUMENTS[slot].get_or_init(|| {
+        asyncapi::asyncapi_json(served)
+            .map(Bytes::from)
+            .map_err(|e| e.to_string())
+    })
+}
+
+/// The AsyncAPI 3 document of `GET /v1/stream`'s messages, as this server is configured
+/// (identical to `qrpose asyncapi`, or `qrpose asyncapi --site` when a site is loaded).
+#[utoipa::path(
+    get,
+    path = "/asyncapi.json",
+    tag = "operations",
+    operation_id = "asyncapi_json",
+    responses((status = 200, description = "The AsyncAPI 3.0 document of the stream.",
+        body = Object, content_type = "application/json"))
+)]
+pub async fn serve_asyncapi_json(
+    State(state): State<AppState>,
+) -> Result<impl IntoResponse, ApiError> {
+    let json = rendered_asyncapi(Served::by(&state))
+        .as_ref()
+        .map_err(ApiError::internal)?;
+    Ok(([(header::CONTENT_TYPE, "application/json")], json.clone()))
 }

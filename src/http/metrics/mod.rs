@@ -15,10 +15,21 @@
 //! | `http_connection_limit_reached_total` | counter | | accepts that found the limit reached |
 //! | `http_accept_errors_total` | counter | | failed accepts (e.g. out of descriptors) |
 //! | `site_reloads_total` | counter | outcome | site reloads: `ok`, or `failed` (old site kept) |
+//! | `stream_sessions_open` | gauge | | stream sessions open now |
+//! | `stream_sessions_refused_total` | counter | | sessions closed with 1013 at the limit |
+//! | `stream_frames_answered_total` | counter | | stream frames answered |
+//! | `stream_frames_dropped_total` | counter | | stream frames dropped unanswered |
+//! | `stream_frame_duration_seconds` | histogram | | a frame's arrival to its answer |
+//! | `stream_tracks` | gauge | status | live tracks: `new`, `tracking`, `coasting` |
+//! | `stream_tracks_lost_total` | counter | | tracks lost |
 //!
 //! `route` is the route template (`/v1/pose/corners`), or `unmatched` for unknown paths, so
 //! that scanning clients cannot create unbounded label values. A new per-endpoint metric is
 //! one field here, registered in [`Metrics::new`].
+
+mod stream;
+
+pub use stream::StreamMetrics;
 
 use crate::api::response::PoseResponse;
 use crate::estimate;
@@ -187,6 +198,7 @@ pub struct Metrics {
     queue: QueueMetrics,
     connections: ConnectionMetrics,
     site_reloads: Family<OutcomeLabels, Counter>,
+    stream: StreamMetrics,
 }
 
 /// Labels of `site_reloads_total`.
@@ -282,8 +294,11 @@ impl Metrics {
             "Site file reloads (SIGHUP, POST /v1/site/reload): ok, or failed (the previous site stays loaded)",
             site_reloads.clone(),
         );
+        let stream = StreamMetrics::default();
+        stream.register(&mut registry);
         Self {
             registry,
+            stream,
             site_reloads,
             requests,
             latency,
@@ -293,6 +308,11 @@ impl Metrics {
             queue,
             connections,
         }
+    }
+
+    /// The stream's metrics, for its sessions.
+    pub fn stream(&self) -> StreamMetrics {
+        self.stream.clone()
     }
 
     /// The connection metrics, for the accept loop.

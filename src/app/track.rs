@@ -1,0 +1,241 @@
+//! One frame of a stream (`GET /v1/stream`, `qrpose track`): the photo's codes, as
+//! [`super::estimate_image`] finds them, fed to the session's tracker (crate
+//! `qrpose-track`), whose tracks resolve the planar ambiguity, smooth the poses and say
+//! where to look in the next frame.
+//!
+//! Where to look: on a frame with live tracks the detector first reads crops around each
+//! track's predicted corners ([`qrpose_detect::detect_in_regions`]); the whole frame is
+//! searched on the first frame, every [`TrackSetup::full_search_every`] frames, on the frame
+//! after a track was lost, and on a frame whose crop reads missed a track not predicted
+//! with confidence. A code missed by its crop but predicted with confidence is `coasting`.
+//! So a code that enters the view is found within `full_search_every` frames.
+
+use super::image::{ImageAnswer, ImageError, MarkerAnswer, estimate_decoded};
+use super::prior::Prior;
+use super::setup::ImageSetup;
+use qrpose_core::geometry::marker::CornerOrder;
+use qrpose_core::geometry::quad::ImageQuad;
+use qrpose_detect::cancel::CancelFlag;
+use qrpose_detect::decode::{self, GrayImage};
+use qrpose_track::{
+    Measurement, Outcome, PredictedRegion, TrackReport, TrackStatus, Tracker, TrackerParams,
+};
+use std::time::Instant;
+
+/// The default cadence of the full-frame search on frames with live tracks, frames: a new
+/// code appears within this many frames (a third of a second at 30 fps).
+pub const DEFAULT_FULL_SEARCH_EVERY: u32 = 10;
+
+/// A validated stream setup: the image request of every frame and the tracker's parameters.
+#[derive(Debug, Clone)]
+pub struct TrackSetup {
+    /// Camera, sizes, solver, detection: as for a photo.
+    pub image: ImageSetup,
+    /// The tracker's parameters, validated.
+    pub tracker: TrackerParams,
+    /// Search the whole frame at least every this many frames (≥ 1; 1: every frame).
+    pub full_search_every: u32,
+}
+
+/// How a frame was searched.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Search {
+    /// The whole frame.
+    Full,
+    /// Only the crops around the live tracks' predicted corners.
+    Regions,
+}
+
+/// One frame given to a session.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameIn<'a> {
+    /// JPEG or PNG bytes.
+    pub bytes: &'a [u8],
+    /// When the frame was captured, ms (the client's clock, or the session's).
+    pub capture_time_ms: f64,
+    /// This frame's prior; `None` for the setup's.
+    pub prior: Option<Prior>,
+}
+
+/// A frame's answer: the photo's answer, each code's track and every live track.
+#[derive(Debug, Clone)]
+pub struct TrackAnswer {
+    /// As for a photo.
+    pub image: ImageAnswer,
+    /// Per marker of `image`, the track it went to.
+    pub track_ids: Vec<Option<String>>,
+    /// Every live track after this frame, and those lost by it (reported once).
+    pub tracks: Vec<TrackReport>,
+    /// How the frame was searched.
+    pub search: Search,
+}
+
+/// A stream session's state: its setup and tracks.
+#[derive(Debug)]
+pub struct TrackSession {
+    setup: TrackSetup,
+    tracker: Tracker,
+    /// Frames since the last full-frame search.
+    since_full: u32,
+    /// The next frame searches the whole frame (the first one, or a track was lost).
+    full_next: bool,
+}
+
+/// Why a session cannot start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TrackSetupError {
+    /// A tracker parameter is out of its range.
+    #[error(transparent)]
+    Tracker(#[from] qrpose_track::ParamError),
+    /// `full_search_every` is 0.
+    #[error("full_search_every must be at least 1 frame")]
+    FullSearchEvery,
+}
+
+impl TrackSession {
+    /// A session with no tracks yet.
+    ///
+    /// # Errors
+    /// [`TrackSetupError`] for parameters out of range.
+    pub fn new(setup: TrackSetup) -> Result<Self, TrackSetupError> {
+        if setup.full_search_every == 0 {
+            return Err(TrackSetupError::FullSearchEvery);
+        }
+        let tracker = Tracker::new(setup.tracker)?;
+        Ok(Self {
+            setup,
+            tracker,
+            since_full: 0,
+            full_next: true,
+        })
+    }
+
+    /// The session's setup.
+    pub fn setup(&self) -> &TrackSetup {
+        &self.setup
+    }
+
+    /// Decodes one frame, finds its codes (in the predicted regions first, module docs),
+    /// and updates the tracks; `cancel` stops detection before its next pass.
+    ///
+    /// # Errors
+    /// [`ImageError`] for bytes that are not an image or are over the limits, or a detector
+    /// not in this build; the tracks are untouched then (the frame does not count).
+    pub fn frame(
+        &mut self,
+        input: &FrameIn<'_>,
+        cancel: CancelFlag,
+    ) -> Result<TrackAnswer, ImageError> {
+        let started = Instant::now();
+        let image = decode::decode_gray(input.bytes, &self.setup.image.decode)?;
+        let decode_ms = started.elapsed().as_secs_f64() * 1e3;
+        let mut setup = self.setup.image.clone();
+        if input.prior.is_some() {
+            setup.pose.prior = input.prior;
+        }
+        let t_ms = input.capture_time_ms;
+        let (answer, search) = self.search(&setup, &image, decode_ms, t_ms, cancel)?;
+        let measurements: Vec<(usize, Measurement)> = answer
+            .markers
+            .iter()
+            .enumerate()
+            .filter_map(|(i, m)| measurement_of(m, &setup).map(|x| (i, x)))
+            .collect();
+        let only: Vec<Measurement> = measurements.iter().map(|(_, m)| m.clone()).collect();
+        let update = match self.tracker.update(t_ms, &only) {
+            Ok(update) => update,
+            // A non-finite capture time: the frame's codes without tracking.
+            Err(_) => {
+                return Ok(TrackAnswer {
+                    track_ids: vec![None; answer.markers.len()],
+                    tracks: self.tracker.tracks(),
+                    image: answer,
+                    search,
+                });
+            }
+        };
+        let mut track_ids = vec![None; answer.markers.len()];
+        for ((marker, _), assignment) in measurements.iter().zip(&update.assignments) {
+            if assignment.outcome != Outcome::Unassigned
+                && assignment.outcome != Outcome::TrackLimit
+            {
+                track_ids[*marker].clone_from(&assignment.track_id);
+            }
+        }
+        self.since_full = if search == Search::Full {
+            1
+        } else {
+            self.since_full + 1
+        };
+        self.full_next = update.tracks.iter().any(|t| t.status == TrackStatus::Lost);
+        Ok(TrackAnswer {
+            image: answer,
+            track_ids,
+            tracks: update.tracks,
+            search,
+        })
+    }
+
+    /// Finds the frame's codes: in the live tracks' predicted regions, or in the whole
+    /// frame (module docs).
+    fn search(
+        &self,
+        setup: &ImageSetup,
+        image: &GrayImage,
+        decode_ms: f64,
+        t_ms: f64,
+        cancel: CancelFlag,
+    ) -> Result<(ImageAnswer, Search), ImageError> {
+        let due = self.full_next
+            || self.tracker.is_empty()
+            || self.since_full >= self.setup.full_search_every;
+        let regions = if due {
+            Vec::new()
+        } else {
+            self.tracker
+                .predict_regions(t_ms, &setup.pose.camera)
+                .unwrap_or_default()
+        };
+        if regions.is_empty() {
+            let answer = estimate_decoded(setup, image, decode_ms, cancel)?;
+            return Ok((answer, Search::Full));
+        }
+        let answer =
+            super::image::estimate_in_regions(setup, image, decode_ms, &regions, cancel.clone())?;
+        if missed_unconfident(&regions, &answer) {
+            let answer = estimate_decoded(setup, image, decode_ms, cancel)?;
+            return Ok((answer, Search::Full));
+        }
+        Ok((answer, Search::Regions))
+    }
+}
+
+/// Whether a region not predicted with confidence found no code of its payload: the whole
+/// frame must be searched for it.
+fn missed_unconfident(regions: &[PredictedRegion], answer: &ImageAnswer) -> bool {
+    regions.iter().any(|r| {
+        !r.confident
+            && !answer
+                .markers
+                .iter()
+                .any(|m| m.code.candidate.text.as_deref() == Some(r.payload.as_str()))
+    })
+}
+
+/// The tracker's measurement of one code: its payload, corners and per-frame pose with
+/// covariance (the `reprojection` method's); `None` for a code without one.
+fn measurement_of(m: &MarkerAnswer, setup: &ImageSetup) -> Option<Measurement> {
+    let (marker, _) = m.marker.as_ref()?;
+    let estimate = m.pose.as_ref().ok()?;
+    let quad = ImageQuad::try_new(*m.code.corners_px(), CornerOrder::Qr).ok()?;
+    let sigma = setup.pose.solver.as_reprojection().corner_sigma_px;
+    Measurement::from_estimate(
+        m.code.candidate.text.clone(),
+        marker,
+        &quad,
+        estimate,
+        &setup.pose.camera,
+        sigma,
+    )
+    .ok()
+}
