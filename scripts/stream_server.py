@@ -163,12 +163,18 @@ def slope_per_min(samples):
     return 60 * sum((t - mt) * (v - mv) for t, v in samples) / var if var else None
 
 
-async def sample_rss(server, every_s, stop, out):
+async def sample_rss(server, every_s, stop, out, sessions=None):
+    """Appends (t_s, RSS MiB) to `out` every `every_s` until `stop` is set; with `sessions`
+    a list, also (t_s, the server's stream_sessions_open) read from /metrics off the loop."""
     t0 = time.monotonic()
     while not stop.is_set():
         rss = server.rss_mib()
+        t = round(time.monotonic() - t0, 1)
         if rss is not None:
-            out.append((round(time.monotonic() - t0, 1), round(rss, 1)))
+            out.append((t, round(rss, 1)))
+        if sessions is not None:
+            m = await asyncio.to_thread(metrics, server.url)
+            sessions.append((t, metric(m, "stream_sessions_open")))
         try:
             await asyncio.wait_for(stop.wait(), every_s)
         except asyncio.TimeoutError:
