@@ -111,6 +111,14 @@ pub enum ErrorCode {
     InvalidTrackerParameter,
     /// 426: `GET /v1/stream` asked for without a WebSocket upgrade.
     UpgradeRequired,
+    /// 401: the route needs a bearer token (`--auth-file`) and the request has none, or one
+    /// that no client of the auth file holds. Sent with `WWW-Authenticate: Bearer`.
+    Unauthorized,
+    /// 403: the token is known but its client lacks the route's scope (`pose`, `site`,
+    /// `admin` or `metrics`).
+    Forbidden,
+    /// 400: a plain-HTTP request reached the TLS port; use `https://` (`wss://`).
+    TlsRequired,
     /// 500: a fault of the service, never of the request.
     Internal,
 }
@@ -120,7 +128,9 @@ impl ErrorCode {
     pub fn status(self) -> u16 {
         use ErrorCode::*;
         match self {
-            MalformedJson | MalformedQuery | MalformedMultipart => 400,
+            MalformedJson | MalformedQuery | MalformedMultipart | TlsRequired => 400,
+            Unauthorized => 401,
+            Forbidden => 403,
             NotFound | NoSite => 404,
             MethodNotAllowed => 405,
             ImageTooLarge | PayloadTooLarge => 413,
@@ -177,6 +187,9 @@ impl ErrorCode {
             ShuttingDown => "Shutting down",
             InvalidTrackerParameter => "Invalid tracker parameter",
             UpgradeRequired => "WebSocket upgrade required",
+            Unauthorized => "Unauthorized",
+            Forbidden => "Forbidden",
+            TlsRequired => "TLS required",
             Internal => "Internal error",
         }
     }

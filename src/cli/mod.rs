@@ -4,6 +4,7 @@
 //! Exit codes: 0 success; 2 the input was refused (the problem+json document is on
 //! stderr); 1 anything else (I/O, internal).
 
+mod auth;
 mod estimate;
 mod healthcheck;
 mod openapi;
@@ -60,6 +61,9 @@ pub enum Command {
     /// Track codes over a sequence of frames: one JSON line per frame, what `GET /v1/stream`
     /// answers for it.
     Track(track::TrackArgs),
+    /// Clients of the auth file (docs/security.md): `qrpose auth add NAME --scopes pose`
+    /// prints a new token once and the file's entry.
+    Auth(auth::AuthArgs),
 }
 
 /// A command-line mistake in one of `estimate --image`'s parameters as the problem document
@@ -116,5 +120,6 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Render(args) => render::run(&args),
         Command::Site(args) => site::run(&args),
         Command::Track(args) => track::run(&args),
+        Command::Auth(args) => auth::run(&args),
     }
 }

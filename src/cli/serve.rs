@@ -28,17 +28,27 @@ fn shutdown_signal() -> anyhow::Result<impl std::future::Future<Output = ()>> {
     })
 }
 
-/// Reloads the site on every SIGHUP (`docs/site.md`, Reload), off the async threads; the
-/// outcome is logged and counted by [`AppState::reload_site`].
-fn reload_site_on_sighup(state: AppState) -> anyhow::Result<()> {
+/// Reloads the site (`docs/site.md`, Reload) and the auth file (docs/security.md) on every
+/// SIGHUP, off the async threads; each outcome is logged and counted by its reload
+/// ([`AppState::reload_site`], `AuthStore::reload`), and a refused file keeps the one
+/// loaded before.
+fn reload_on_sighup(state: AppState) -> anyhow::Result<()> {
     use tokio::signal::unix::{SignalKind, signal};
     let mut sighup = signal(SignalKind::hangup()).context("cannot listen for SIGHUP")?;
     tokio::spawn(async move {
         while sighup.recv().await.is_some() {
-            tracing::info!("SIGHUP received: reloading the site");
+            tracing::info!("SIGHUP received: reloading the site and the auth file");
             let state = state.clone();
-            // The outcome is logged and counted inside; a panic is the task's own.
-            let _ = tokio::task::spawn_blocking(move || state.reload_site()).await;
+            // The outcomes are logged and counted inside; a panic is the task's own.
+            let _ = tokio::task::spawn_blocking(move || {
+                if state.site.path().is_some() {
+                    let _ = state.reload_site();
+                }
+                if state.auth.file().is_some() {
+                    let _ = state.auth.reload();
+                }
+            })
+            .await;
         }
     });
     Ok(())
@@ -48,7 +58,7 @@ async fn serve(settings: Settings, site: Option<Site>) -> anyhow::Result<()> {
     let addr = settings.addr;
     let shutdown = shutdown_signal()?;
     let state = AppState::with_site(settings, site).context("cannot build the service state")?;
-    reload_site_on_sighup(state.clone())?;
+    reload_on_sighup(state.clone())?;
     let listener = tokio::net::TcpListener::bind(addr)
         .await
         .with_context(|| format!("cannot listen on {addr}"))?;
@@ -64,6 +74,17 @@ async fn serve(settings: Settings, site: Option<Site>) -> anyhow::Result<()> {
         request_timeout_ms = qrpose::config::millis(state.settings.request_timeout),
         "listening"
     );
+    if let Some(clients) = state.auth.current() {
+        tracing::info!(
+            file = %state.auth.file().map(|f| f.display().to_string()).unwrap_or_default(),
+            sha256 = clients.file_sha256_hex(),
+            clients = clients.len(),
+            "auth file loaded: tokens are checked"
+        );
+    }
+    if let Some(warning) = http::auth::exposure_warning(bound, state.auth.is_on()) {
+        tracing::warn!("{warning}");
+    }
     if let Some(site) = state.site.current() {
         tracing::info!(
             file = %site.file().display(),
@@ -92,6 +113,13 @@ pub fn run(args: ServeArgs) -> ExitCode {
         Ok(site) => site,
         Err(code) => return code,
     };
+    // So is a bad auth file (the state loads it again, a moment later).
+    if let Some(file) = &settings.security.auth_file
+        && let Err(e) = qrpose::config::auth::Clients::load(file)
+    {
+        eprintln!("qrpose serve: {e}");
+        return ExitCode::from(super::EXIT_BAD_INPUT);
+    }
     if let Err(e) = qrpose::telemetry::init(settings.log_format) {
         eprintln!("qrpose serve: {e}");
         return ExitCode::FAILURE;

@@ -6,8 +6,11 @@
 //! through [`Settings::try_from`] (or [`Settings::default`], the validated defaults), so the
 //! rest of the service never re-checks a value.
 
+pub mod auth;
+mod security;
 mod stream;
 
+pub use security::{SecurityArgs, SecuritySettings, TlsFiles};
 pub use stream::{StreamArgs, StreamSettings};
 
 use clap::{Args, ValueEnum};
@@ -159,6 +162,9 @@ pub struct ServeArgs {
     /// The limits of stream sessions (`GET /v1/stream`).
     #[command(flatten)]
     pub stream: StreamArgs,
+    /// Who may call it: the auth file and TLS (docs/security.md).
+    #[command(flatten)]
+    pub security: SecurityArgs,
 }
 
 impl Default for ServeArgs {
@@ -184,6 +190,7 @@ impl Default for ServeArgs {
             // Site (issue 14).
             site: None,
             stream: StreamArgs::default(),
+            security: SecurityArgs::default(),
         }
     }
 }
@@ -249,6 +256,8 @@ pub struct Settings {
     // ---- end of site
     /// The limits of stream sessions.
     pub stream: StreamSettings,
+    /// The auth file and TLS.
+    pub security: SecuritySettings,
 }
 
 impl Default for Settings {
@@ -276,6 +285,7 @@ impl Default for Settings {
             // Site (issue 14).
             site: None,
             stream: StreamSettings::default(),
+            security: SecuritySettings::default(),
         }
     }
 }
@@ -405,6 +415,7 @@ impl TryFrom<ServeArgs> for Settings {
             // Site (issue 14): the file is read by the caller, which owns the exit code.
             site: args.site,
             stream: StreamSettings::try_from(&args.stream)?,
+            security: SecuritySettings::from(&args.security),
         }
         .with_memory_budget(args.max_inflight_pixels, args.max_inflight_body_bytes)
     }

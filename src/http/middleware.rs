@@ -3,13 +3,16 @@
 //! 1. [`sanitize_request_id`]: drops a client's `x-request-id` unless it is a short token;
 //! 2. tower-http's `SetRequestId` (a UUID when absent) and `PropagateRequestId` (echoed on
 //!    the response);
-//! 3. `Trace`: one span per request ([`request_span`]: `request_id`, `method`, `path`), so
-//!    every log line of the request carries its id, and one line per response;
+//! 3. `Trace`: one span per request ([`request_span`]: `request_id`, `method`, `path`, and
+//!    `client` once the auth layer knows it), so every log line of the request carries its
+//!    id, and one line per response;
 //! 4. [`record_metrics`]: request count and latency by route template and status;
 //! 5. [`problems_for_bare_errors`]: any error response without a problem body (axum's own,
 //!    Swagger UI's) gets one, keeping `Allow` and `Retry-After`;
-//! 6. `CatchPanic` ([`panic_response`]): a panicking handler answers 500 `internal`;
-//! 7. [`enforce_timeout`]: 503 `timeout` after `request_timeout`, body reading included.
+//! 6. [`super::auth::require`]: the bearer token and its scope, when an auth file is loaded
+//!    (401 `unauthorized`, 403 `forbidden`);
+//! 7. `CatchPanic` ([`panic_response`]): a panicking handler answers 500 `internal`;
+//! 8. [`enforce_timeout`]: 503 `timeout` after `request_timeout`, body reading included.
 
 use super::error::{ApiError, KEPT_HEADERS, is_problem};
 use super::metrics::{Metrics, UNMATCHED_ROUTE};
@@ -63,6 +66,7 @@ pub fn request_span(request: &Request) -> Span {
         request_id = %request_id,
         method = %request.method(),
         path = %request.uri().path(),
+        client = tracing::field::Empty,
     )
 }
 

@@ -11,6 +11,7 @@
 //! queue is full). Connections are served by [`conn`]: header-read and idle timeouts, the
 //! connection limit, accept back-off.
 
+pub mod auth;
 pub mod conn;
 pub mod error;
 pub mod extract;
@@ -79,6 +80,7 @@ pub fn with_middleware(app: Router<AppState>, state: AppState) -> Router {
             middleware::record_metrics,
         ))
         .layer(from_fn(middleware::problems_for_bare_errors))
+        .layer(from_fn_with_state(state.auth.clone(), auth::require))
         .layer(CatchPanicLayer::custom(middleware::panic_response))
         .layer(from_fn_with_state(
             state.settings.request_timeout,

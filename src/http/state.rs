@@ -1,5 +1,6 @@
 //! [`AppState`]: what every handler shares, passed with axum's `State`.
 
+use super::auth::AuthStore;
 use super::metrics::Metrics;
 use super::queue::EstimationQueue;
 use crate::config::Settings;
@@ -142,6 +143,9 @@ pub enum StateError {
     /// The site file was refused.
     #[error(transparent)]
     Site(#[from] SiteError),
+    /// The auth file was refused.
+    #[error(transparent)]
+    Auth(#[from] crate::config::auth::AuthFileError),
 }
 
 /// The state shared by all handlers; cheap to clone.
@@ -159,6 +163,8 @@ pub struct AppState {
     pub site: SiteStore,
     /// The stream sessions open.
     pub streams: StreamSessions,
+    /// The clients of the auth file, when one is loaded (docs/security.md).
+    pub auth: AuthStore,
 }
 
 impl AppState {
@@ -168,20 +174,21 @@ impl AppState {
     }
 
     /// Fresh state for `settings`: an empty queue, zeroed metrics, and the site file of
-    /// `settings.site` loaded.
+    /// `settings.site` and the auth file of `settings.security` loaded.
     ///
     /// # Errors
-    /// [`StateError`] when a worker thread cannot be spawned or the site file is refused.
+    /// [`StateError`] when a worker thread cannot be spawned or a file is refused.
     pub fn new(settings: Settings) -> Result<Self, StateError> {
         let site = settings.site.as_deref().map(Site::load).transpose()?;
         Self::with_site(settings, site)
     }
 
     /// [`AppState::new`] with the site already loaded from `settings.site` (`qrpose serve`
-    /// loads it before starting, to exit 2 on a bad file).
+    /// loads it before starting, to exit 2 on a bad file). The auth file of
+    /// `settings.security` is loaded here.
     ///
     /// # Errors
-    /// [`StateError`] when a worker thread cannot be spawned.
+    /// [`StateError`] when a worker thread cannot be spawned or the auth file is refused.
     pub fn with_site(settings: Settings, site: Option<Site>) -> Result<Self, StateError> {
         let metrics = Arc::new(Metrics::new());
         let queue = EstimationQueue::new(
@@ -193,7 +200,9 @@ impl AppState {
         .with_body_budget(settings.max_inflight_body_bytes);
         let site = SiteStore::new(settings.site.clone(), site);
         let streams = StreamSessions::new(settings.stream.max_sessions);
+        let auth = AuthStore::load(settings.security.auth_file.clone(), metrics.auth())?;
         Ok(Self {
+            auth,
             settings: Arc::new(settings),
             queue,
             metrics,

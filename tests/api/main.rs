@@ -4,6 +4,7 @@
 
 mod helpers;
 
+mod auth;
 mod connections;
 mod corners;
 mod corners_bad_inputs;

@@ -22,13 +22,20 @@
 //! | `stream_frame_duration_seconds` | histogram | | a frame's arrival to its answer |
 //! | `stream_tracks` | gauge | status | live tracks: `new`, `tracking`, `coasting` |
 //! | `stream_tracks_lost_total` | counter | | tracks lost |
+//! | `auth_requests_total` | counter | client, scope, outcome | protected requests: `allowed`, `unauthorized`, `forbidden` |
+//! | `auth_clients` | gauge | | clients in the loaded auth file |
+//! | `auth_reloads_total` | counter | outcome | auth file reloads: `ok`, or `failed` (old file kept) |
+//! | `tls_reloads_total` | counter | outcome | certificate reloads: `ok`, or `failed` (old one kept) |
+//! | `tls_connections_refused_total` | counter | reason | `plain_http`, `handshake`, `timeout` |
 //!
 //! `route` is the route template (`/v1/pose/corners`), or `unmatched` for unknown paths, so
 //! that scanning clients cannot create unbounded label values. A new per-endpoint metric is
 //! one field here, registered in [`Metrics::new`].
 
+mod auth;
 mod stream;
 
+pub use auth::{ANONYMOUS_CLIENT, AuthMetrics, AuthOutcome, TlsRefusal};
 pub use stream::StreamMetrics;
 
 use crate::api::response::PoseResponse;
@@ -199,6 +206,7 @@ pub struct Metrics {
     connections: ConnectionMetrics,
     site_reloads: Family<OutcomeLabels, Counter>,
     stream: StreamMetrics,
+    auth: AuthMetrics,
 }
 
 /// Labels of `site_reloads_total`.
@@ -296,7 +304,10 @@ impl Metrics {
         );
         let stream = StreamMetrics::default();
         stream.register(&mut registry);
+        let auth = AuthMetrics::default();
+        auth.register(&mut registry);
         Self {
+            auth,
             registry,
             stream,
             site_reloads,
@@ -313,6 +324,11 @@ impl Metrics {
     /// The stream's metrics, for its sessions.
     pub fn stream(&self) -> StreamMetrics {
         self.stream.clone()
+    }
+
+    /// The security metrics, for the auth layer and the TLS acceptor.
+    pub fn auth(&self) -> AuthMetrics {
+        self.auth.clone()
     }
 
     /// The connection metrics, for the accept loop.

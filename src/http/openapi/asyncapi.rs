@@ -134,7 +134,7 @@ pub fn asyncapi_json(served: Served) -> Result<String, serde_json::Error> {
     .collect();
     let channel_message =
         |name: &str| json!({"$ref": format!("#/channels/stream/messages/{name}")});
-    let doc = json!({
+    let mut doc = json!({
         "asyncapi": "3.0.0",
         "info": {
             "title": "qrpose stream",
@@ -170,6 +170,7 @@ pub fn asyncapi_json(served: Served) -> Result<String, serde_json::Error> {
         },
         "components": {"messages": messages, "schemas": schemas},
     });
+    super::security::declare_asyncapi_security(&mut doc);
     serde_json::to_string_pretty(&doc).map(|json| json + "\n")
 }
 

@@ -19,6 +19,7 @@ pub mod asyncapi;
 mod forms;
 mod query;
 mod requests;
+mod security;
 mod variants;
 
 pub use requests::Served;
@@ -123,6 +124,7 @@ pub fn openapi_json(served: Served) -> Result<String, serde_json::Error> {
     forms::document_forms(&mut doc);
     requests::write_alternatives(&mut doc, served);
     query::parameters_as_served(&mut doc, served);
+    security::declare_security(&mut doc);
     serde_json::to_string_pretty(&doc).map(|json| json + "\n")
 }
 

@@ -45,6 +45,11 @@ pub struct Readiness {
     pub status: String,
     /// The estimation queue.
     pub queue: QueueStatus,
+    /// What an operator should know and the service still serves with: today only that it
+    /// listens on a non-loopback address without an auth file (docs/security.md). Absent
+    /// when there is nothing to say.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Liveness: 200 while the process serves HTTP.
@@ -64,6 +69,9 @@ pub async fn healthz() -> Json<Health> {
 }
 
 /// Readiness: 200 while the service takes new work, 503 once it is shutting down.
+///
+/// Still 200, with `warnings`, when the service listens on a non-loopback address without
+/// an auth file: every endpoint is open to the network (docs/security.md).
 #[utoipa::path(
     get,
     path = "/readyz",
@@ -79,8 +87,10 @@ pub async fn readyz(State(state): State<AppState>) -> Result<Json<Readiness>, Ap
     if state.lifecycle.is_draining() {
         return Err(ApiError::shutting_down());
     }
+    let warnings = crate::http::auth::exposure_warning(state.settings.addr, state.auth.is_on());
     Ok(Json(Readiness {
         status: "ready".to_owned(),
         queue: state.queue.occupancy().into(),
+        warnings: warnings.into_iter().collect(),
     }))
 }
