@@ -88,7 +88,8 @@ pub fn asyncapi_json(served: Served) -> Result<String, serde_json::Error> {
     let mut doc = serde_json::to_value(super::openapi())?;
     let stream = serde_json::to_value(StreamSchemas::openapi())?;
     if let (Some(all), Some(own)) = (
-        doc.pointer_mut("/components/schemas").and_then(Value::as_object_mut),
+        doc.pointer_mut("/components/schemas")
+            .and_then(Value::as_object_mut),
         stream["components"]["schemas"].as_object(),
     ) {
         for (name, schema) in own {

@@ -353,5 +353,4 @@ pub fn entry_line(name: &str, token: &str, scopes: Scopes) -> String {
 }
 
 #[cfg(test)]
-#[path = "auth_tests.rs"]
 mod tests;
