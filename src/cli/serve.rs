@@ -1,8 +1,9 @@
 //! `qrpose serve`: the HTTP service on a tokio runtime sized by the settings.
 //!
-//! Prints `listening on http://ADDR` on standard output once the socket is bound (with
-//! `--addr 127.0.0.1:0`, ADDR has the port the system picked); logs go to standard error.
-//! SIGTERM or SIGINT starts a graceful shutdown; the exit code is then 0.
+//! Prints `listening on http://ADDR` (`https://` with `--tls-cert`) on standard output once
+//! the socket is bound (with `--addr 127.0.0.1:0`, ADDR has the port the system picked);
+//! logs go to standard error. SIGTERM or SIGINT starts a graceful shutdown; the exit code is
+//! then 0. SIGHUP reloads the site, the auth file and the TLS certificate.
 
 use anyhow::Context;
 use qrpose::config::{ServeArgs, Settings};
@@ -28,16 +29,17 @@ fn shutdown_signal() -> anyhow::Result<impl std::future::Future<Output = ()>> {
     })
 }
 
-/// Reloads the site (`docs/site.md`, Reload) and the auth file (docs/security.md) on every
-/// SIGHUP, off the async threads; each outcome is logged and counted by its reload
-/// ([`AppState::reload_site`], `AuthStore::reload`), and a refused file keeps the one
-/// loaded before.
+/// Reloads the site (`docs/site.md`, Reload), the auth file and the TLS certificate
+/// (docs/security.md) on every SIGHUP, off the async threads; each outcome is logged and
+/// counted by its reload ([`AppState::reload_site`], `AuthStore::reload`,
+/// `TlsStore::reload`), and a refused file keeps the one loaded before. Open connections
+/// keep the certificate they started with.
 fn reload_on_sighup(state: AppState) -> anyhow::Result<()> {
     use tokio::signal::unix::{SignalKind, signal};
     let mut sighup = signal(SignalKind::hangup()).context("cannot listen for SIGHUP")?;
     tokio::spawn(async move {
         while sighup.recv().await.is_some() {
-            tracing::info!("SIGHUP received: reloading the site and the auth file");
+            tracing::info!("SIGHUP received: reloading the site, the auth file and TLS");
             let state = state.clone();
             // The outcomes are logged and counted inside; a panic is the task's own.
             let _ = tokio::task::spawn_blocking(move || {
@@ -46,6 +48,9 @@ fn reload_on_sighup(state: AppState) -> anyhow::Result<()> {
                 }
                 if state.auth.file().is_some() {
                     let _ = state.auth.reload();
+                }
+                if let Some(tls) = &state.tls {
+                    let _ = tls.reload();
                 }
             })
             .await;
@@ -65,7 +70,8 @@ async fn serve(settings: Settings, site: Option<Site>) -> anyhow::Result<()> {
     let bound = listener
         .local_addr()
         .context("cannot read the bound address")?;
-    println!("listening on http://{bound}");
+    let scheme = if state.tls.is_some() { "https" } else { "http" };
+    println!("listening on {scheme}://{bound}");
     tracing::info!(
         addr = %bound,
         max_concurrent_estimations = state.settings.max_concurrent_estimations.get(),
@@ -116,6 +122,12 @@ pub fn run(args: ServeArgs) -> ExitCode {
     // So is a bad auth file (the state loads it again, a moment later).
     if let Some(file) = &settings.security.auth_file
         && let Err(e) = qrpose::config::auth::Clients::load(file)
+    {
+        eprintln!("qrpose serve: {e}");
+        return ExitCode::from(super::EXIT_BAD_INPUT);
+    }
+    if let Some(files) = &settings.security.tls
+        && let Err(e) = qrpose::http::tls::server_config(files)
     {
         eprintln!("qrpose serve: {e}");
         return ExitCode::from(super::EXIT_BAD_INPUT);

@@ -25,6 +25,7 @@ pub mod queue;
 pub mod routes;
 pub mod state;
 pub mod stream;
+pub mod tls;
 
 pub use state::{AppState, StateError};
 
@@ -102,7 +103,7 @@ async fn method_not_allowed(request: Request) -> ApiError {
 /// accepting, marks the service as draining (`/readyz` answers 503) and waits for in-flight
 /// requests, at most `settings.shutdown_grace`; connections still open then are dropped.
 /// Connections are served by [`conn`], which enforces the header-read and idle timeouts and
-/// the connection limit of the settings.
+/// the connection limit of the settings, over TLS when `state.tls` is set ([`tls`]).
 ///
 /// # Errors
 /// An I/O error of the listener.
@@ -120,6 +121,7 @@ where
     let lifecycle = state.lifecycle.clone();
     let metrics = state.metrics.connections();
     let streams = state.streams.clone();
+    let tls = state.tls.clone();
     let on_shutdown = move || {
         lifecycle.start_draining();
         tracing::info!(
@@ -132,6 +134,7 @@ where
         router(state),
         limits,
         metrics,
+        tls,
         shutdown,
         on_shutdown,
     )

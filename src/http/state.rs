@@ -146,6 +146,9 @@ pub enum StateError {
     /// The auth file was refused.
     #[error(transparent)]
     Auth(#[from] crate::config::auth::AuthFileError),
+    /// A TLS file was refused.
+    #[error(transparent)]
+    Tls(#[from] super::tls::TlsError),
 }
 
 /// The state shared by all handlers; cheap to clone.
@@ -165,6 +168,8 @@ pub struct AppState {
     pub streams: StreamSessions,
     /// The clients of the auth file, when one is loaded (docs/security.md).
     pub auth: AuthStore,
+    /// TLS, when configured: the certificate in use, reloaded on SIGHUP.
+    pub tls: Option<super::tls::TlsStore>,
 }
 
 impl AppState {
@@ -174,7 +179,7 @@ impl AppState {
     }
 
     /// Fresh state for `settings`: an empty queue, zeroed metrics, and the site file of
-    /// `settings.site` and the auth file of `settings.security` loaded.
+    /// `settings.site` and the auth and TLS files of `settings.security` loaded.
     ///
     /// # Errors
     /// [`StateError`] when a worker thread cannot be spawned or a file is refused.
@@ -184,11 +189,12 @@ impl AppState {
     }
 
     /// [`AppState::new`] with the site already loaded from `settings.site` (`qrpose serve`
-    /// loads it before starting, to exit 2 on a bad file). The auth file of
-    /// `settings.security` is loaded here.
+    /// loads it before starting, to exit 2 on a bad file). The auth and TLS files of
+    /// `settings.security` are loaded here.
     ///
     /// # Errors
-    /// [`StateError`] when a worker thread cannot be spawned or the auth file is refused.
+    /// [`StateError`] when a worker thread cannot be spawned or the auth or a TLS file is
+    /// refused.
     pub fn with_site(settings: Settings, site: Option<Site>) -> Result<Self, StateError> {
         let metrics = Arc::new(Metrics::new());
         let queue = EstimationQueue::new(
@@ -201,8 +207,12 @@ impl AppState {
         let site = SiteStore::new(settings.site.clone(), site);
         let streams = StreamSessions::new(settings.stream.max_sessions);
         let auth = AuthStore::load(settings.security.auth_file.clone(), metrics.auth())?;
+        let tls = (settings.security.tls.clone())
+            .map(|files| super::tls::TlsStore::load(files, metrics.auth()))
+            .transpose()?;
         Ok(Self {
             auth,
+            tls,
             settings: Arc::new(settings),
             queue,
             metrics,

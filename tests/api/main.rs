@@ -21,3 +21,4 @@ mod shutdown;
 mod site;
 mod site_reload;
 mod stream;
+mod tls;

@@ -23,6 +23,10 @@
 //! sees its head complete, and the response body `TrackedBody` sees the response end
 //! (dropped once written). The connection's task sleeps until its phase's deadline.
 //!
+//! With TLS (`super::tls`), the handshake comes first and counts as part of the first
+//! request's head: it must complete within the header-read timeout, and a connection in its
+//! handshake is fresh (closed to make room or at shutdown like one that has sent nothing).
+//!
 //! Shutdown: the listener closes, fresh and idle connections are closed at once, the others
 //! finish their requests (hyper's graceful shutdown), at most for the grace period; then
 //! every connection still open is dropped.
@@ -32,6 +36,7 @@ mod phase;
 mod tests;
 
 use super::metrics::{CloseReason, ConnectionMetrics};
+use super::tls::TlsStore;
 use crate::config::millis;
 use axum::Router;
 use hyper::server::conn::http1;
@@ -146,6 +151,8 @@ struct Shared {
     limits: ConnectionLimits,
     registry: Arc<Registry>,
     metrics: ConnectionMetrics,
+    /// TLS, when configured: each connection's handshake with the configuration in use.
+    tls: Option<TlsStore>,
     /// Cancelled at the shutdown signal: finish in-flight requests, then close.
     draining: CancellationToken,
     /// Cancelled when the grace period is over: close now.
@@ -241,8 +248,18 @@ impl Future for Driver {
 async fn serve_connection(tcp: TcpStream, shared: Arc<Shared>, permit: OwnedSemaphorePermit) {
     let activity = Activity::new();
     let registered = shared.registry.add(Arc::clone(&activity));
+    let deadline = Instant::now() + shared.limits.header_read_timeout;
+    let stop = async {
+        tokio::select! {
+            () = registered.evict.cancelled() => {}
+            () = shared.draining.cancelled() => {}
+        }
+    };
+    let Some(stream) = super::tls::handshake(tcp, shared.tls.as_ref(), deadline, stop).await else {
+        return;
+    };
     let io = TokioIo::new(WatchedIo {
-        inner: tcp,
+        inner: stream,
         activity: Arc::clone(&activity),
     });
     let service = Tracked {
@@ -331,8 +348,9 @@ fn open_file_limit() -> Option<u64> {
     line.split_whitespace().nth(3)?.parse().ok()
 }
 
-/// Serves `app` on `listener` with `limits` until `shutdown` completes; `on_shutdown` runs
-/// once at that moment (before the wait for in-flight requests).
+/// Serves `app` on `listener` with `limits` (over TLS when `tls` is given) until `shutdown`
+/// completes; `on_shutdown` runs once at that moment (before the wait for in-flight
+/// requests).
 ///
 /// # Errors
 /// None today: accept errors are retried with a back-off. The `Result` keeps the signature
@@ -342,6 +360,7 @@ pub async fn serve_connections<F, G>(
     app: Router,
     limits: ConnectionLimits,
     metrics: ConnectionMetrics,
+    tls: Option<TlsStore>,
     shutdown: F,
     on_shutdown: G,
 ) -> io::Result<()>
@@ -366,6 +385,7 @@ where
         limits,
         registry: Arc::default(),
         metrics,
+        tls,
         draining: CancellationToken::new(),
         closing: CancellationToken::new(),
     });

@@ -5,6 +5,7 @@
 
 use super::ConnectionLimits;
 use crate::http::metrics::CloseReason;
+use crate::http::tls::ServerStream;
 use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{Request, Response};
@@ -17,7 +18,6 @@ use std::pin::Pin;
 use std::sync::{Arc, Mutex, PoisonError};
 use std::task::{Context, Poll};
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
-use tokio::net::TcpStream;
 use tokio::time::Instant;
 use tower::ServiceExt;
 
@@ -80,9 +80,10 @@ impl Activity {
     }
 }
 
-/// The socket, reporting the first byte of a request to the connection's phase.
+/// The socket (after the TLS handshake, its plaintext side), reporting the first byte of a
+/// request to the connection's phase.
 pub(super) struct WatchedIo {
-    pub(super) inner: TcpStream,
+    pub(super) inner: ServerStream,
     pub(super) activity: Arc<Activity>,
 }
 
