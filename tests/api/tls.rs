@@ -20,27 +20,27 @@ use tokio_rustls::client::TlsStream;
 use tokio_tungstenite::tungstenite::Message;
 
 /// A directory of this test binary's own for `name`'s files.
-fn dir(name: &str) -> PathBuf {
+pub(crate) fn dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("qrpose-tls-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("a directory");
     dir
 }
 
 /// A certificate authority, and the certificates and keys it signs.
-struct Pki {
+pub(crate) struct Pki {
     ca: CertifiedIssuer<'static, KeyPair>,
 }
 
 /// A leaf certificate and its key, as DER and as PEM.
-struct Leaf {
-    der: CertificateDer<'static>,
+pub(crate) struct Leaf {
+    pub(crate) der: CertificateDer<'static>,
     key_der: Vec<u8>,
-    cert_pem: String,
-    key_pem: String,
+    pub(crate) cert_pem: String,
+    pub(crate) key_pem: String,
 }
 
 impl Pki {
-    fn new(name: &str) -> Self {
+    pub(crate) fn new(name: &str) -> Self {
         let mut params = CertificateParams::new(Vec::<String>::new()).expect("params");
         params.is_ca = IsCa::Ca(BasicConstraints::Unconstrained);
         params
@@ -52,7 +52,7 @@ impl Pki {
         }
     }
 
-    fn leaf(&self, names: &[&str]) -> Leaf {
+    pub(crate) fn leaf(&self, names: &[&str]) -> Leaf {
         let params =
             CertificateParams::new(names.iter().map(|n| (*n).to_owned()).collect::<Vec<_>>())
                 .expect("params");
@@ -66,7 +66,7 @@ impl Pki {
         }
     }
 
-    fn ca_pem(&self) -> String {
+    pub(crate) fn ca_pem(&self) -> String {
         self.ca.pem()
     }
 
@@ -78,7 +78,7 @@ impl Pki {
 }
 
 /// The server's files in `dir`: its certificate and key, and optionally a client CA.
-fn write_files(dir: &std::path::Path, leaf: &Leaf, client_ca: Option<&Pki>) -> TlsFiles {
+pub(crate) fn write_files(dir: &std::path::Path, leaf: &Leaf, client_ca: Option<&Pki>) -> TlsFiles {
     let write = |name: &str, text: &str| {
         let path = dir.join(name);
         let partial = path.with_extension("partial");
@@ -93,7 +93,7 @@ fn write_files(dir: &std::path::Path, leaf: &Leaf, client_ca: Option<&Pki>) -> T
     }
 }
 
-async fn tls_app(files: TlsFiles, header_read_timeout: Option<Duration>) -> TestApp {
+pub(crate) async fn tls_app(files: TlsFiles, header_read_timeout: Option<Duration>) -> TestApp {
     let defaults = Settings::default();
     spawn_app_with(Settings {
         security: SecuritySettings {
@@ -106,7 +106,7 @@ async fn tls_app(files: TlsFiles, header_read_timeout: Option<Duration>) -> Test
     .await
 }
 
-fn authority(app: &TestApp) -> String {
+pub(crate) fn authority(app: &TestApp) -> String {
     app.address.trim_start_matches("http://").to_owned()
 }
 

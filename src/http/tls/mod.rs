@@ -49,7 +49,11 @@ impl TlsError {
     }
 }
 
-fn certificates(file: &Path) -> Result<Vec<CertificateDer<'static>>, TlsError> {
+/// The certificates of the PEM file `file`, in order (a chain: leaf first).
+///
+/// # Errors
+/// [`TlsError`] when the file is unreadable, not PEM, or holds no certificate.
+pub fn certificates(file: &Path) -> Result<Vec<CertificateDer<'static>>, TlsError> {
     let certificates = CertificateDer::pem_file_iter(file)
         .map_err(|e| TlsError::new(file, format!("cannot read: {e}")))?
         .collect::<Result<Vec<_>, _>>()
@@ -58,6 +62,15 @@ fn certificates(file: &Path) -> Result<Vec<CertificateDer<'static>>, TlsError> {
         return Err(TlsError::new(file, "holds no CERTIFICATE block"));
     }
     Ok(certificates)
+}
+
+/// The private key of the PEM file `file` (PKCS#8, PKCS#1 or SEC1).
+///
+/// # Errors
+/// [`TlsError`] when the file is unreadable or holds no private key.
+pub fn private_key(file: &Path) -> Result<PrivateKeyDer<'static>, TlsError> {
+    PrivateKeyDer::from_pem_file(file)
+        .map_err(|e| TlsError::new(file, format!("no usable private key: {e}")))
 }
 
 /// The server configuration of `files`: TLS 1.2 and 1.3, ALPN `http/1.1`, client
@@ -69,8 +82,7 @@ fn certificates(file: &Path) -> Result<Vec<CertificateDer<'static>>, TlsError> {
 pub fn server_config(files: &TlsFiles) -> Result<ServerConfig, TlsError> {
     let provider = Arc::new(rustls::crypto::ring::default_provider());
     let chain = certificates(&files.cert)?;
-    let key = PrivateKeyDer::from_pem_file(&files.key)
-        .map_err(|e| TlsError::new(&files.key, format!("no usable private key: {e}")))?;
+    let key = private_key(&files.key)?;
     let builder = ServerConfig::builder_with_provider(Arc::clone(&provider))
         .with_protocol_versions(&[&rustls::version::TLS13, &rustls::version::TLS12])
         .map_err(|e| TlsError::new(&files.cert, e.to_string()))?;
