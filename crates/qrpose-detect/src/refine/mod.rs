@@ -13,7 +13,11 @@ pub(crate) mod corners;
 mod finders;
 pub(crate) mod homography;
 pub(crate) mod profile;
+mod targets;
 
 pub use corners::{RefineStatus, Refinement, refine_corners, refine_corners_through};
 pub use finders::{finder_marker_points, finder_model_points, marker_point_of_module};
 pub use homography::ModulePoint;
+pub use targets::{
+    MIN_TARGET_PX_PER_MODULE, TargetPoint, TargetPointKind, calibration_points, count_by_kind,
+};

@@ -50,13 +50,13 @@ mod modules;
 
 pub(crate) use count::estimate_module_count;
 pub(crate) use lens::Lens;
+pub(crate) use modules::{ModuleMap, module_map, reference_levels};
 
 use crate::raster::GrayImage;
 use crate::refine::homography::ModulePoint;
 use edges::observe;
 use fit::{finder_corners, fit_homography};
 use lens::Grid;
-use modules::{module_map, reference_levels};
 use qrpose_core::geometry::camera::Camera;
 use qrpose_core::geometry::frames::PixelPoint;
 
@@ -183,10 +183,10 @@ fn refine(
     let mut last_step_px = f64::INFINITY;
     for pass in 0..=MAX_FINAL_PASSES {
         let scan = pass == 0;
-        let Some((light, dark)) = reference_levels(image, &grid, n) else {
+        let Some((light, dark)) = reference_levels(image, |m| grid.map(m), n) else {
             return unrefined(RefineStatus::TooFewEdges, Some(n));
         };
-        let map = module_map(image, &grid, n, light, dark);
+        let map = module_map(image, |m| grid.map(m), n, light, dark);
         let pass_obs = observe(image, &grid, &map, scan);
         // The observations are in ideal pixels, where the grid's lines are straight.
         let Some(next_h) = fit_homography(&pass_obs, grid.homography()) else {

@@ -7,19 +7,21 @@
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
 #![allow(clippy::cast_possible_truncation)]
 
-use super::lens::Grid;
 use crate::raster::GrayImage;
 use crate::refine::homography::ModulePoint;
+use qrpose_core::geometry::frames::PixelPoint;
 
 /// Module colours: `Some(true)` dark, `Some(false)` light, `None` unknown. Outside the
 /// symbol everything is light (the quiet zone).
-pub(super) struct ModuleMap {
-    pub(super) n: usize,
+pub(crate) struct ModuleMap {
+    /// Modules per side.
+    pub(crate) n: usize,
     dark: Vec<Option<bool>>,
 }
 
 impl ModuleMap {
-    pub(super) fn get(&self, i: i64, j: i64) -> Option<bool> {
+    /// The colour of module (i, j) (column i, row j).
+    pub(crate) fn get(&self, i: i64, j: i64) -> Option<bool> {
         let n = self.n as i64;
         if i < 0 || j < 0 || i >= n || j >= n {
             return Some(false);
@@ -80,8 +82,13 @@ pub(super) fn function_module_count(n: usize) -> usize {
 }
 
 /// Light and dark reference levels: the quiet zone just outside the symbol and the finder
-/// cores. `None` when they cannot be sampled.
-pub(super) fn reference_levels(image: &GrayImage, grid: &Grid, n: usize) -> Option<(f64, f64)> {
+/// cores, sampled where `map` (module coordinates to the photo's pixels) puts them. `None`
+/// when they cannot be sampled.
+pub(crate) fn reference_levels(
+    image: &GrayImage,
+    map: impl Fn(ModulePoint) -> PixelPoint,
+    n: usize,
+) -> Option<(f64, f64)> {
     let nf = n as f64;
     let mut light = Vec::new();
     for k in 0..(4 * n) {
@@ -92,7 +99,7 @@ pub(super) fn reference_levels(image: &GrayImage, grid: &Grid, n: usize) -> Opti
             ModulePoint::new(-1.5, t),
             ModulePoint::new(nf + 1.5, t),
         ] {
-            let x = grid.map(p);
+            let x = map(p);
             if let Some(i) = image.sample(x.u(), x.v()) {
                 light.push(i);
             }
@@ -102,7 +109,7 @@ pub(super) fn reference_levels(image: &GrayImage, grid: &Grid, n: usize) -> Opti
     for (u0, v0) in [(2.0, 2.0), (nf - 5.0, 2.0), (2.0, nf - 5.0)] {
         for a in 0..3 {
             for b in 0..3 {
-                let x = grid.map(ModulePoint::new(
+                let x = map(ModulePoint::new(
                     u0 + f64::from(a) + 0.5,
                     v0 + f64::from(b) + 0.5,
                 ));
@@ -123,29 +130,29 @@ fn median(values: &mut [f64]) -> Option<f64> {
     Some(values[values.len() / 2])
 }
 
-/// The module map under `grid`: function patterns known, data modules read at their
-/// centres.
-pub(super) fn module_map(
+/// The module map under `map` (module coordinates to the photo's pixels): function
+/// patterns known, data modules read at their centres.
+pub(crate) fn module_map(
     image: &GrayImage,
-    grid: &Grid,
+    map: impl Fn(ModulePoint) -> PixelPoint,
     n: usize,
     light: f64,
     dark: f64,
 ) -> ModuleMap {
     let threshold = 0.5 * (light + dark);
     let inverted = dark > light;
-    let mut map = vec![None; n * n];
+    let mut colours = vec![None; n * n];
     for j in 0..n {
         for i in 0..n {
-            map[j * n + i] = function_module(n, i, j).or_else(|| {
-                let x = grid.map(ModulePoint::new(i as f64 + 0.5, j as f64 + 0.5));
+            colours[j * n + i] = function_module(n, i, j).or_else(|| {
+                let x = map(ModulePoint::new(i as f64 + 0.5, j as f64 + 0.5));
                 image
                     .sample(x.u(), x.v())
                     .map(|value| (value < threshold) != inverted)
             });
         }
     }
-    ModuleMap { n, dark: map }
+    ModuleMap { n, dark: colours }
 }
 
 #[cfg(test)]

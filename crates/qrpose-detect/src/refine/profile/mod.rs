@@ -13,11 +13,15 @@
 //! edge, but a one-module dark ring next to it pulls gradient peaks and threshold crossings
 //! by up to half a pixel at blur σ = 1.4 px and 2 px modules; fitting the whole pattern
 //! removes that bias. δ, s, W, D are found by Levenberg-Marquardt after a coarse scan of δ.
+//! Module `rows` extends the pattern to the module rows on either side of the profile's, for
+//! rows narrow against the blur.
 
 mod normal;
+mod rows;
 
 use nalgebra::{Matrix4, Vector4};
 use normal::{NORMAL_TABLE, NormalTable, normal};
+pub(crate) use rows::fit_profile_rows;
 
 /// One dark run of the pattern, [start, end) in modules along the profile.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,11 +62,12 @@ const SCAN_STEP_MODULES: f64 = 0.25;
 const MIN_STEP_MODULES: f64 = 1e-3;
 
 /// Most boundaries of a pattern handled without allocation (a profile crosses at most
-/// 2 · `PATTERN_MODULES` module boundaries; the refinement uses 4 modules a side).
-const MAX_BOUNDARIES: usize = 16;
+/// 2 · `PATTERN_MODULES` module boundaries; the refinement uses 4 modules a side), for
+/// three rows of them (module `rows`).
+const MAX_BOUNDARIES: usize = 48;
 
 /// The dark runs as signed boundaries: S(d) = `base` + Σ sign · Φ((d − position − δ)/s),
-/// a run [a, b) giving +Φ at a and −Φ at b. Boundaries at infinity (a run open to either
+/// a run [a, b) of weight w giving +w·Φ at a and −w·Φ at b. Boundaries at infinity (a run open to either
 /// end of the profile) are constants, 1 and 0, and are folded into `base`, so that every
 /// evaluation looks up only the boundaries the profile can see.
 struct Pattern {
@@ -75,14 +80,20 @@ struct Pattern {
 impl Pattern {
     /// `None` for more boundaries than [`MAX_BOUNDARIES`].
     fn new(runs: &[DarkRun]) -> Option<Self> {
+        Self::weighted(runs.iter().map(|run| (1.0, *run)))
+    }
+
+    /// Runs of given weights (their darkness scaled by it); `None` for more boundaries than
+    /// [`MAX_BOUNDARIES`].
+    fn weighted(runs: impl IntoIterator<Item = (f64, DarkRun)>) -> Option<Self> {
         let mut pattern = Self {
             base: 0.0,
             positions: [0.0; MAX_BOUNDARIES],
             signs: [0.0; MAX_BOUNDARIES],
             len: 0,
         };
-        for run in runs {
-            for (position, sign) in [(run.start, 1.0), (run.end, -1.0)] {
+        for (weight, run) in runs {
+            for (position, sign) in [(run.start, weight), (run.end, -weight)] {
                 if position <= -OPEN_END_MODULES {
                     pattern.base += sign; // Φ(+∞) = 1
                 } else if position < OPEN_END_MODULES {
@@ -219,18 +230,30 @@ pub(crate) fn fit_profile(
     sigma0: f64,
     scan: bool,
 ) -> Option<ProfileFit> {
-    if d.len() < MIN_SAMPLES || d.len() != intensity.len() || runs.is_empty() {
+    if runs.is_empty() {
+        return None;
+    }
+    fit_pattern(&Pattern::new(runs)?, (d, intensity), (0.0, sigma0), scan)
+}
+
+/// [`fit_profile`] of a built pattern, starting at δ = `delta0`, s = `sigma0`.
+fn fit_pattern(
+    pattern: &Pattern,
+    (d, intensity): (&[f64], &[f64]),
+    (delta0, sigma0): (f64, f64),
+    scan: bool,
+) -> Option<ProfileFit> {
+    if d.len() < MIN_SAMPLES || d.len() != intensity.len() {
         return None;
     }
     let table = &*NORMAL_TABLE;
-    let pattern = Pattern::new(runs)?;
     // Coarse scan of δ with the levels solved exactly, so that LM starts in the right basin.
     let mut best: Option<(f64, Vector4<f64>)> = None;
     // The scan only has to find the basin: every other sample will do, at half the cost.
     let (scan_steps, stride) = if scan { (-3..=3, 2) } else { (0..=0, 1) };
     for k in scan_steps {
-        let delta = f64::from(k) * SCAN_STEP_MODULES;
-        let (w, dk, c) = levels_and_cost(table, &pattern, (d, intensity), stride, delta, sigma0);
+        let delta = delta0 + f64::from(k) * SCAN_STEP_MODULES;
+        let (w, dk, c) = levels_and_cost(table, pattern, (d, intensity), stride, delta, sigma0);
         let p = Vector4::new(delta, sigma0, w, dk);
         if best.as_ref().is_none_or(|(bc, _)| c < *bc) {
             best = Some((c, p));
@@ -239,7 +262,7 @@ pub(crate) fn fit_profile(
     let (_, mut p) = best?;
     // Each trial point is linearised in the same pass that gives its cost, so an accepted
     // step costs one pass over the samples, not two.
-    let (mut c, mut jtj, mut jtr) = linearise(table, &pattern, d, intensity, &p);
+    let (mut c, mut jtj, mut jtr) = linearise(table, pattern, d, intensity, &p);
     let mut lambda = 1e-3;
     let iterations = if scan {
         LM_ITERATIONS_AFTER_SCAN
@@ -260,7 +283,7 @@ pub(crate) fn fit_profile(
             };
             let mut q = p + step;
             q[1] = q[1].clamp(0.02, 3.0);
-            let (cq, jtj_q, jtr_q) = linearise(table, &pattern, d, intensity, &q);
+            let (cq, jtj_q, jtr_q) = linearise(table, pattern, d, intensity, &q);
             if cq < c {
                 improved = step[0].abs() > MIN_STEP_MODULES;
                 (p, c, jtj, jtr) = (q, cq, jtj_q, jtr_q);
