@@ -34,11 +34,14 @@
 //! the file encoding in module `encoding`. Every public item is re-exported here, but for
 //! rendered video: a camera moving past codes placed in a world frame, frame by frame, with
 //! the truth of every code in view, in the public module [`sequence`] (docs/rendering.md).
+//! Module `checkerboard` draws printed checkerboards with the same rasteriser and effects
+//! ([`render_checkerboard`]), the reference target of the calibration comparison.
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
 #![allow(clippy::cast_possible_truncation)]
 
+mod checkerboard;
 mod encoding;
 mod random;
 mod raster;
@@ -48,6 +51,10 @@ mod symbol;
 #[cfg(test)]
 mod tests;
 
+pub use checkerboard::{
+    BoardScene, BoardTruth, Checkerboard, MAX_BOARD_SQUARES, RenderedBoard, board_truth,
+    render_checkerboard,
+};
 pub use encoding::{Encoding, encode};
 pub use random::{SceneRanges, random_scene};
 pub use raster::{render, render_scene};
@@ -194,6 +201,18 @@ pub enum RenderError {
         name: &'static str,
         /// The value given (of a `[min, max]` field, its min).
         value: f64,
+    },
+    /// A [`Checkerboard`] with fewer than 2 or more than [`MAX_BOARD_SQUARES`] squares a
+    /// side, a size that is not finite and positive, or a border that is not finite and
+    /// non-negative.
+    #[error("invalid checkerboard: {squares} squares, {size_mm} mm, border {border_mm} mm")]
+    Checkerboard {
+        /// Squares per side.
+        squares: u32,
+        /// Outer side, mm.
+        size_mm: f64,
+        /// Border, mm.
+        border_mm: f64,
     },
     /// [`random_scene`] could not fit the codes it drew into the image without overlaps.
     #[error("cannot place {codes} codes without overlap in the image")]

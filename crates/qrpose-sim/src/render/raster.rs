@@ -5,7 +5,8 @@
 //! 8-bit quantisation; the file is written by [`super::encode`]. The pieces (a code ready to
 //! draw, the lighting, the plane over any background, the finishing effects) are shared
 //! with [`super::sequence`], whose frames have codes partly out of view, a wall fixed to the
-//! world as background, and several drawings averaged for motion blur.
+//! world as background, and several drawings averaged for motion blur, and with
+//! [`super::render_checkerboard`], whose squares are drawn as a symbol's modules are.
 
 // Pixel and module indices are floats floored or clamped into the image or the module grid
 // (or u8 grey levels clamped to 0..=255) before the cast, so truncation cannot occur.
@@ -19,7 +20,8 @@ use super::{
 };
 use nalgebra::{Point3, Vector3};
 use qrpose_core::geometry::camera::Camera;
-use qrpose_core::geometry::frames::{CameraPoint, CameraToMarker, PixelPoint};
+use qrpose_core::geometry::frames::{CameraPoint, CameraToMarker, MarkerToCamera, PixelPoint};
+use qrpose_core::geometry::marker::Marker;
 use qrpose_detect::decode::GrayImage;
 use qrpose_detect::raster::gaussian_blur_plane;
 use rand::{Rng, SeedableRng, rngs::StdRng};
@@ -148,11 +150,30 @@ impl Prepared {
     /// [`RenderError::Encode`].
     pub(super) fn new(
         camera: &Camera,
-        [width_px, height_px]: [u32; 2],
+        size: [u32; 2],
         code: &CodePlacement,
         qz: f64,
     ) -> Result<Self, RenderError> {
-        let (n, modules) = symbol_modules(&code.payload, code.ec_level)?;
+        let grid = symbol_modules(&code.payload, code.ec_level)?;
+        Ok(Self::with_modules(
+            camera,
+            size,
+            (&code.marker, &code.pose),
+            grid,
+            qz,
+        ))
+    }
+
+    /// Any grid of `n` × `n` dark or light cells (row-major `modules`) drawn as a symbol's
+    /// modules are, with `qz` cells of light margin: a QR symbol's modules, or the squares
+    /// of a checkerboard ([`super::render_checkerboard`]).
+    pub(super) fn with_modules(
+        camera: &Camera,
+        [width_px, height_px]: [u32; 2],
+        (marker, pose): (&Marker, &MarkerToCamera),
+        (n, modules): (usize, Vec<bool>),
+        qz: f64,
+    ) -> Self {
         let nf = n as f64;
         // Pixels whose footprint may touch the symbol and its quiet zone get supersampled.
         // Lens distortion bows the outline's sides (a fisheye by tens of pixels), so the box
@@ -173,7 +194,7 @@ impl Prepared {
         let outline: Vec<[f64; 2]> = along_sides
             .filter_map(|(u, v)| {
                 camera
-                    .project(&code.pose.transform(&marker_point(u, v, &code.marker, n)))
+                    .project(&pose.transform(&marker_point(u, v, marker, n)))
                     .map(|p| [p.u(), p.v()])
             })
             .collect();
@@ -191,18 +212,18 @@ impl Prepared {
         } else {
             (0.0, f64::from(width_px), 0.0, f64::from(height_px))
         };
-        Ok(Self {
+        Self {
             n,
             modules,
-            normal: code.pose.rotation() * Vector3::z(),
-            t: code.pose.translation_mm(),
-            inv: code.pose.inverse(),
-            l: code.marker.size_mm(),
+            normal: pose.rotation() * Vector3::z(),
+            t: pose.translation_mm(),
+            inv: pose.inverse(),
+            l: marker.size_mm(),
             umin,
             umax,
             vmin,
             vmax,
-        })
+        }
     }
 
     /// Whether any pixel of a `width_px` × `height_px` image may see this code (its image
@@ -301,6 +322,27 @@ pub fn render_scene(scene: &MultiScene, effects: &Effects) -> Result<RenderedSce
         truth.push(t);
         codes.push(p);
     }
+    let (image, encoded) = draw_photo(&scene.camera, [w, h], &codes, effects)?;
+    Ok(RenderedScene {
+        image,
+        encoded,
+        truth,
+    })
+}
+
+/// A photo of prepared codes (or boards) over the background: clutter, background level
+/// and lighting, then noise, all drawn from `effects.seed` in that order (so one seed gives
+/// the same background, lighting and noise whatever is drawn), the plane finished
+/// and encoded.
+///
+/// # Errors
+/// [`RenderError::ImageSize`], [`RenderError::Effect`], [`RenderError::Image`].
+pub(super) fn draw_photo(
+    camera: &Camera,
+    [w, h]: [u32; 2],
+    codes: &[Prepared],
+    effects: &Effects,
+) -> Result<(GrayImage, Vec<u8>), RenderError> {
     let mut rng = StdRng::seed_from_u64(effects.seed);
     let (wf, hf) = (f64::from(w), f64::from(h));
     let shapes: Vec<Shape> = (0..effects.clutter)
@@ -309,21 +351,10 @@ pub fn render_scene(scene: &MultiScene, effects: &Effects) -> Result<RenderedSce
     let background_level = rng.gen_range(90.0..170.0);
     let lighting = Lighting::draw(&mut rng, [w, h], effects.lighting);
     let background = |u: f64, v: f64| Shape::level_at(&shapes, u, v).unwrap_or(background_level);
-    let plane = draw_plane(
-        &scene.camera,
-        [w, h],
-        &codes,
-        effects,
-        &background,
-        &lighting,
-    );
+    let plane = draw_plane(camera, [w, h], codes, effects, &background, &lighting);
     let image = finish(plane, [w, h], effects, &mut rng)?;
     let encoded = encode(&image, effects.encoding)?;
-    Ok(RenderedScene {
-        image,
-        encoded,
-        truth,
-    })
+    Ok((image, encoded))
 }
 
 /// Refuses an image side of zero or above [`MAX_SIDE_PX`].
