@@ -5,7 +5,9 @@ docker/smoke.sh builds and runs them for real, issue 26).
 Parses docker/compose.yaml and docker/k8s/*.yaml and checks that they name what the
 deployment relies on: the services and their health checks, the environment-only
 configuration, resource limits, the load balancer and its config, the probes, the non-root
-security context, the Service and the autoscaler; and that the Dockerfile keeps the
+security context, the Service and the autoscaler; that docker/compose.secure.yaml and the
+Kubernetes Deployment take the auth file and the TLS files from mounted secrets, and that
+the probes speak HTTPS when TLS is on (docs/security.md); and that the Dockerfile keeps the
 properties hadolint does not know about (non-root user, port, health check, entrypoint, no
 `# syntax=` line); and that nginx passes WebSocket upgrades on /v1/stream.
 
@@ -114,6 +116,26 @@ def check_compose():
           "headers, a read timeout in minutes or hours)")
 
 
+def check_compose_secure():
+    """docker/compose.secure.yaml: the auth file and the TLS files as Compose secrets, each
+    variable pointing at its secret's file under /run/secrets/."""
+    (override,) = load_all(DOCKER / "compose.secure.yaml")
+    service = override.get("services", {}).get("qrpose", {})
+    env = service.get("environment", {})
+    declared = override.get("secrets", {})
+    mounted = [s if isinstance(s, str) else s.get("source") for s in service.get("secrets", [])]
+    for variable in ("QRPOSE_AUTH_FILE", "QRPOSE_TLS_CERT", "QRPOSE_TLS_KEY"):
+        path = str(env.get(variable, ""))
+        name = path.removeprefix("/run/secrets/")
+        check(path.startswith("/run/secrets/") and name in mounted and "file" in declared.get(name, {}),
+              f"compose.secure: {variable} must point at a secret of `qrpose` (/run/secrets/NAME)")
+    files = [str(v.get("file", "")) for v in declared.values()]
+    check(all(f.startswith("./secrets/") for f in files),
+          "compose.secure: secret files belong in docker/secrets/ (ignored by git)")
+    gitignore = (ROOT / ".gitignore").read_text(encoding="utf-8").split()
+    check("/docker/secrets/" in gitignore, ".gitignore: /docker/secrets/ must be ignored")
+
+
 def probe(container, kind):
     return container.get(kind, {}).get("httpGet", {})
 
@@ -135,16 +157,32 @@ def check_kubernetes():
     containers = pod.get("containers", [])
     check(len(containers) == 1, "k8s: one container expected")
     container = containers[0] if containers else {}
-    ports = {p.get("name"): p.get("containerPort") for p in container.get("ports", [])}
-    check(ports.get("http") == PORT, f"k8s: container port `http` must be {PORT}")
     env = {e.get("name"): e.get("value") for e in container.get("env", [])}
+    tls = "QRPOSE_TLS_CERT" in env
+    port_name = "https" if tls else "http"
+    ports = {p.get("name"): p.get("containerPort") for p in container.get("ports", [])}
+    check(ports.get(port_name) == PORT, f"k8s: container port `{port_name}` must be {PORT}")
     check(env.get("QRPOSE_ADDR") == f"0.0.0.0:{PORT}", "k8s: QRPOSE_ADDR must listen on 0.0.0.0")
     check(probe(container, "readinessProbe").get("path") == "/readyz",
           "k8s: readiness probe must GET /readyz")
     check(probe(container, "livenessProbe").get("path") == "/healthz",
           "k8s: liveness probe must GET /healthz")
     for kind in ("readinessProbe", "livenessProbe"):
-        check(probe(container, kind).get("port") in ("http", PORT), f"k8s: {kind} on the wrong port")
+        check(probe(container, kind).get("port") in (port_name, PORT), f"k8s: {kind} on the wrong port")
+        check(probe(container, kind).get("scheme", "HTTP") == ("HTTPS" if tls else "HTTP"),
+              f"k8s: {kind} must use {'HTTPS' if tls else 'HTTP'}")
+    # Tokens and TLS from Secrets mounted as whole directories (docs/security.md).
+    secret_dirs = {}
+    volumes = {v.get("name"): v for v in pod.get("volumes", [])}
+    for mount in container.get("volumeMounts", []):
+        volume = volumes.get(mount.get("name"), {})
+        if "secret" in volume:
+            check(mount.get("readOnly") is True and "subPath" not in mount,
+                  f"k8s: the Secret mount {mount.get('name')} must be read-only and whole (no subPath)")
+            secret_dirs[mount.get("mountPath", "").rstrip("/")] = volume["secret"].get("secretName")
+    for variable in ("QRPOSE_AUTH_FILE", "QRPOSE_TLS_CERT", "QRPOSE_TLS_KEY"):
+        directory = str(env.get(variable, "")).rsplit("/", 1)[0]
+        check(directory in secret_dirs, f"k8s: {variable} must be a file of a mounted Secret")
     resources = container.get("resources", {})
     for bound in ("requests", "limits"):
         check({"cpu", "memory"} <= set(resources.get(bound, {})),
@@ -167,7 +205,7 @@ def check_kubernetes():
     check(service.get("spec", {}).get("selector", {}).items() <= labels.items()
           and service.get("spec", {}).get("selector"),
           "k8s: the Service's selector must match the pods")
-    check(any(p.get("targetPort") in ("http", PORT) for p in service.get("spec", {}).get("ports", [])),
+    check(any(p.get("targetPort") in (port_name, PORT) for p in service.get("spec", {}).get("ports", [])),
           "k8s: the Service must target the container port")
     hpa = by_kind.get("HorizontalPodAutoscaler", {})
     target = hpa.get("spec", {}).get("scaleTargetRef", {})
@@ -181,7 +219,7 @@ def check_kubernetes():
 
 
 def main():
-    for step in (check_dockerfile, check_compose, check_kubernetes):
+    for step in (check_dockerfile, check_compose, check_compose_secure, check_kubernetes):
         try:
             step()
         except (OSError, yaml.YAMLError, ValueError, AttributeError, TypeError) as e:
@@ -190,7 +228,7 @@ def main():
         print(f"FAIL: {failure}")
     if failures:
         return 1
-    print("deployment files: ok (Dockerfile, compose.yaml, nginx.conf, k8s/)")
+    print("deployment files: ok (Dockerfile, compose.yaml, compose.secure.yaml, nginx.conf, k8s/)")
     return 0
 
 
