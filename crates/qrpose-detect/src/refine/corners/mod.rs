@@ -50,7 +50,7 @@ mod modules;
 
 pub(crate) use count::estimate_module_count;
 pub(crate) use lens::Lens;
-pub(crate) use modules::{ModuleMap, module_map, reference_levels};
+pub(crate) use modules::{ModuleMap, is_function_module, module_map, reference_levels};
 
 use crate::raster::GrayImage;
 use crate::refine::homography::ModulePoint;

@@ -59,6 +59,16 @@ fn function_module(n: usize, i: usize, j: usize) -> Option<bool> {
     None
 }
 
+/// Whether module (i, j) of an N-module symbol belongs to a finder pattern (with its
+/// separator) or a timing pattern, whose colours are known without reading them; `false`
+/// outside the symbol.
+pub(crate) fn is_function_module(n: usize, i: i64, j: i64) -> bool {
+    match (usize::try_from(i), usize::try_from(j)) {
+        (Ok(i), Ok(j)) if i < n && j < n => function_module(n, i, j).is_some(),
+        _ => false,
+    }
+}
+
 /// Every function-pattern module (i, j, dark) of an N-module symbol: the three finders with
 /// their separators, and the two timing patterns between them. The same modules as
 /// [`function_module`] marks, without visiting the N² data modules.

@@ -15,7 +15,7 @@
 
 use super::warp::{EdgeOffset, WarpedGrid};
 use crate::raster::GrayImage;
-use crate::refine::corners::ModuleMap;
+use crate::refine::corners::{ModuleMap, is_function_module};
 use crate::refine::homography::ModulePoint;
 use crate::refine::profile::{DarkRun, fit_profile, fit_profile_rows};
 
@@ -222,15 +222,44 @@ fn measure(
     .map(|fit| fit.delta)
 }
 
-/// Measures every module edge of the N-module symbol under `grid`, colours from `map`.
-/// `scan`: the first pass from a grid that may be a fraction of a module off (every other
-/// row only, each edge searched for); later passes measure every row from the line.
+/// Which edges a pass measures, and how.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Pass {
+    /// The edges whose place does not hang on data modules read through a grid that may be
+    /// more than half a module off (a strong lens near the image's edge bends a symbol's
+    /// far corner that much from the homography of its corners): the symbol's outline
+    /// (the quiet zone on one side) and the edges between finder or timing modules, each
+    /// searched for. A data module read through such a grid is its neighbour's, and the
+    /// pattern read with it fits the edge one module off, a fit the warp would then follow.
+    Anchored,
+    /// Every other row, each edge searched for, from a grid the anchored edges brought
+    /// close.
+    Scan,
+    /// Every row, from the line.
+    Final,
+}
+
+/// Whether the edge on `line` across row `k` of an N-module symbol is anchored
+/// ([`Pass::Anchored`]).
+fn anchored(n: i64, line: Line, k: i64) -> bool {
+    let module = |a: i64| if line.along_u { (a, k) } else { (k, a) };
+    let known = |(i, j): (i64, i64)| {
+        // Module counts are at most 177.
+        #[allow(clippy::cast_sign_loss, clippy::cast_possible_truncation)]
+        is_function_module(n as usize, i, j)
+    };
+    line.c == 0 || line.c == n || (known(module(line.c - 1)) && known(module(line.c)))
+}
+
+/// Measures the module edges of the N-module symbol under `grid` that `pass` measures,
+/// colours from `map`.
 pub(super) fn measure_edges(
     image: &GrayImage,
     grid: &WarpedGrid,
     map: &ModuleMap,
-    scan: bool,
+    pass: Pass,
 ) -> Edges {
+    let scan = pass != Pass::Final;
     // Module counts are at most 177.
     #[allow(clippy::cast_possible_wrap)]
     let n = map.n as i64;
@@ -239,7 +268,12 @@ pub(super) fn measure_edges(
     for along_u in [true, false] {
         for c in 0..=n {
             let line = Line { along_u, c };
-            for k in (0..n).filter(|k| !scan || k % 2 == 0) {
+            let wanted = |k: &i64| match pass {
+                Pass::Anchored => anchored(n, line, *k),
+                Pass::Scan => k % 2 == 0,
+                Pass::Final => true,
+            };
+            for k in (0..n).filter(wanted) {
                 let Some(delta) =
                     measure(image, grid, map, (line, k), scan, (&mut d, &mut intensity))
                 else {

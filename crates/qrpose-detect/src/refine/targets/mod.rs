@@ -7,16 +7,20 @@
 //! 1. **Grid.** Takes the module-to-image homography through the refined corners and reads
 //!    the module map through it (function patterns known, data modules read at their
 //!    centres; `refine::corners`).
-//! 2. **Edges, first pass.** Measures every other module edge of the symbol (every boundary
-//!    between two modules of different colour, on the lines u = c and v = c), each by the
-//!    1-D profile fit of `refine::profile`, searching ± three quarters of a module
-//!    (module `edges`).
+//! 2. **Edges, anchored pass.** Measures the symbol's outline and the edges between finder
+//!    and timing modules (module edges are the boundaries between two modules of different
+//!    colour, on the lines u = c and v = c), each by the 1-D profile fit of
+//!    `refine::profile`, searching ± three quarters of a module (module `edges`): the
+//!    edges whose place does not hang on data modules read through a grid that may be
+//!    more than half a module off.
 //! 3. **Warp.** Fits a cubic warp of module coordinates that puts the measured edges on
 //!    their lines (module `warp`): the homography and the warp together follow the bend of
 //!    an unknown lens over the symbol.
-//! 4. **Edges, final pass.** Reads the module map again and measures every edge through the
+//! 4. **Edges, scanning pass.** Reads the module map through the warped grid, measures
+//!    every other row's edges, searching as before, and fits the warp again to them.
+//! 5. **Edges, final pass.** Reads the module map again and measures every edge through the
 //!    warped grid, starting each fit at its line.
-//! 5. **Points** (module `points`): every module corner (i, j) where the lines u = i and
+//! 6. **Points** (module `points`): every module corner (i, j) where the lines u = i and
 //!    v = j have at least two measured edges each within two modules: the crossing of the
 //!    two local line fits. Among them the twelve outer corners of the three finder patterns
 //!    (the 7 × 7 squares), the twelve corners of their inner light squares (5 × 5) and the
@@ -42,7 +46,7 @@ use crate::refine::corners::{module_map, reference_levels};
 use crate::refine::finders::marker_point_of_module;
 use crate::refine::homography::{Homography, ModulePoint};
 use crate::search::region::{Crop, Region};
-use edges::measure_edges;
+use edges::{Pass, measure_edges};
 use points::{GridPoint, alignment_centre, module_corners};
 use qrpose_core::geometry::frames::{MarkerPoint, PixelPoint};
 use qrpose_core::geometry::marker::Marker;
@@ -154,8 +158,9 @@ fn alignment_modules(n: i64) -> Vec<(i64, i64)> {
     out
 }
 
-/// Passes of edge measurement: the scanning one, then one through the warped grid.
-const PASSES: usize = 2;
+/// Passes of edge measurement, a warp fitted after each but the last (module `edges`,
+/// [`Pass`]).
+const PASSES: [Pass; 3] = [Pass::Anchored, Pass::Scan, Pass::Final];
 
 /// Gaussian blur σ applied to the symbol's pixels before its edges are measured, as a share
 /// of the symbol's smallest module, px per px. The profiles sample the photo by bilinear
@@ -183,7 +188,7 @@ struct Measured {
 }
 
 /// Measures the edges of the N-module symbol with corners `corners_px` (module doc, steps
-/// 1-4).
+/// 1-5).
 fn measure(image: &GrayImage, corners_px: &[PixelPoint; 4], n: usize) -> Option<Measured> {
     let sides_px = (0..4).map(|i| (corners_px[i].0 - corners_px[(i + 1) % 4].0).norm());
     let (shortest_px, longest_px) = sides_px.fold((f64::INFINITY, 0.0_f64), |(lo, hi), s| {
@@ -201,10 +206,10 @@ fn measure(image: &GrayImage, corners_px: &[PixelPoint; 4], n: usize) -> Option<
     };
     let (light, dark) = reference_levels(&patch, |m| grid.map(m), n)?;
     let mut measured = None;
-    for pass in 0..PASSES {
+    for (k, pass) in PASSES.into_iter().enumerate() {
         let map = module_map(&patch, |m| grid.map(m), n, light, dark);
-        let found = measure_edges(&patch, &grid, &map, pass == 0);
-        if pass + 1 < PASSES {
+        let found = measure_edges(&patch, &grid, &map, pass);
+        if k + 1 < PASSES.len() {
             grid.warp = grid.warp.fit(&found.offsets())?;
         }
         measured = Some(found);
