@@ -26,8 +26,8 @@
 #    image requests in flight: all answered, exit code 0.
 # 5. Brings up docker/compose.yaml's scale-out profile with Debian's docker-compose: the
 #    balancer and two replicas; kills one replica's process (SIGKILL) under load and counts
-#    what the balancer did with the requests (docker/smoke/traffic.py). A WebSocket
-#    session through the balancer is checked once GET /v1/stream exists.
+#    what the balancer did with the requests (docker/smoke/traffic.py); then a WebSocket
+#    session on GET /v1/stream through the balancer, kept on one replica.
 #
 # Prints the image size, the start-up time to healthy and each step's duration; ends with
 # "N passed, N failed" and exits 1 when a check failed. Scratch files (vendored crates, root
@@ -276,18 +276,57 @@ check "replicas get compose.yaml's limits and a read-only root ($("$DOCKER" insp
   test "$("$DOCKER" inspect -f '{{.HostConfig.Memory}} {{.HostConfig.NanoCpus}} {{.HostConfig.ReadonlyRootfs}}' "${REPLICAS[@]}" | sort -u)" = "$want"
 check "the balancer answers /healthz from a replica" curl -sf -o /dev/null "$LB_URL/healthz"
 
-# websocket_session_through_lb URL: a WebSocket session on GET /v1/stream through the
-# balancer, to be written once the route exists (issue 24). Until then the server answers
-# 404 and the check is skipped; any other answer means the route exists and this check
-# fails until it is written.
+# websocket_session_through_lb URL: a WebSocket session on GET /v1/stream (issue 24) through
+# the balancer: frames of the rendered `still` video (rendered by the image), each answered in
+# order with `tracks`, a code `tracking` by the end, closed with 1000
+# (scripts/stream_load.py session, websockets from PyPI in target/stream-load-venv). nginx's
+# access log line of the session (found by its X-Request-Id) must say 101 and name one
+# replica; that replica's qrpose_stream_frames_answered_total must have grown by the frames
+# sent and the other's not at all.
+stream_answered() {
+  curl -sf --max-time 5 "http://$1/metrics" \
+    | awk '$1 == "qrpose_stream_frames_answered_total" { print $2 + 0; found = 1 } END { if (!found) print "?" }'
+}
 websocket_session_through_lb() {
-  local code
-  code="$(curl -s -o /dev/null -w '%{http_code}' "$1/v1/stream")"
-  if [[ "$code" == 404 ]]; then
-    skip "WebSocket session through the balancer: GET /v1/stream answers 404, the stream route does not exist yet"
-  else
-    fail "WebSocket session through the balancer: GET /v1/stream answers $code, so the route exists: write this check (websocket_session_through_lb in docker/smoke.sh)"
+  local url="$1" frames=6 dir="$IMAGES/stream-still" out rid line upstream status b after
+  local -A addr_of=() before_of=()
+  "$WORK/render.sh" render --sequence still --frames "$frames" --out "$dir" >/dev/null
+  for r in "${REPLICAS[@]}"; do
+    addr_of[$r]="$("$DOCKER" inspect -f '{{range .NetworkSettings.Networks}}{{.IPAddress}}{{end}}' "$r"):8080"
+    before_of[$r]="$(stream_answered "${addr_of[$r]}")"
+  done
+  local t0; t0="$(date +%s)"
+  if ! out="$("$PY" "$SRC/scripts/stream_load.py" session --url "$url" --frames-dir "$dir" 2>"$WORK/stream-session.log")"; then
+    tail -5 "$WORK/stream-session.log"
+    fail "WebSocket session through the balancer: $out"
+    return
   fi
+  echo "  session: $out"
+  rid="$("$PY" -c 'import json, sys; print(json.load(sys.stdin)["request_id"])' <<<"$out")"
+  for _ in $(seq 50); do
+    line="$("$DOCKER" logs --since "$t0" "$LB" 2>/dev/null | grep -F "rid=$rid " || true)"
+    [[ -n "$line" ]] && break
+    sleep 0.2
+  done
+  echo "  nginx: ${line:-no access log line for rid=$rid}"
+  status="$(sed -n 's/.* status=\([0-9]*\) .*/\1/p' <<<"$line")"
+  upstream="$(sed -n 's/.* upstream="\([^"]*\)".*/\1/p' <<<"$line")"
+  local named="" answered=()
+  for r in "${REPLICAS[@]}"; do
+    after="$(stream_answered "${addr_of[$r]}")"
+    answered+=("${addr_of[$r]} ${before_of[$r]} -> $after")
+    if [[ "${addr_of[$r]}" == "$upstream" ]]; then
+      named="$r" b="${before_of[$r]}"
+      if [[ "$after" == "?" || "$b" == "?" ]] || ((after - b != frames)); then
+        named="bad:$r"
+      fi
+    elif [[ "$after" != "${before_of[$r]}" ]]; then
+      named="bad:other"
+    fi
+  done
+  echo "  stream frames answered by replica: ${answered[*]}"
+  check "WebSocket session through the balancer: $frames frames answered in order with tracks, closed 1000; nginx passed the upgrade (status $status) to one replica ($upstream), which answered every frame" \
+    test "$status" = 101 -a -n "$named" -a "${named#bad:}" = "$named"
 }
 websocket_session_through_lb "$LB_URL"
 

@@ -26,6 +26,7 @@ WAIT_S = 60  # longest wait for one answer
 
 
 def connect(url, **kw):
+    """A client connection: no message size limit, no keep-alive pings, no compression."""
     return ws_connect(url, max_size=None, ping_interval=None, compression=None,
                       open_timeout=20, close_timeout=10, **kw)
 
@@ -39,11 +40,13 @@ def frame_at(frames, k):
 
 
 def counters():
+    """A session's counts, filled by `pump`."""
     return {"sent": 0, "late": 0, "dropped": 0, "problems": 0, "problem_codes": {},
             "markers": 0, "latencies_ms": [], "errors": []}
 
 
 def note_problem(r, answer):
+    """Counts a problem answer by its code."""
     r["problems"] += 1
     code = answer.get("code", "?")
     r["problem_codes"][code] = r["problem_codes"].get(code, 0) + 1
@@ -222,6 +225,7 @@ class Soak:
         self.outcomes = []
 
     async def slot(self, i, kind):
+        """Sessions of `kind` one after another until the deadline."""
         j = 0
         while time.monotonic() < self.deadline:
             rng = random.Random(self.seed * 1_000_003 + i * 10_007 + j)

@@ -114,6 +114,8 @@ def stream_query(spec):
 
 
 async def run_latency(a, server, frames, query):
+    """`a.sessions` paced sessions at once, staggered within a frame period; the summary and
+    whether anything was answered without an error."""
     import stream_clients as sc
 
     url = f"{server.url.replace('http', 'ws', 1)}/v1/stream?{query}"
@@ -157,6 +159,8 @@ async def run_latency(a, server, frames, query):
 
 
 async def run_soak(a, server, frames, query):
+    """The soak's slots until the deadline, then its checks (and, with the server started
+    here, the last phase); the summary and whether every check held."""
     import stream_clients as sc
 
     url = f"{server.url.replace('http', 'ws', 1)}/v1/stream?{query}"

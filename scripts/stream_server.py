@@ -26,6 +26,7 @@ class Server:
 
     @classmethod
     def start(cls, qrpose_bin, args, work):
+        """`qrpose serve` on a free loopback port, its log in `work`."""
         work.mkdir(parents=True, exist_ok=True)
         log = work / f"server-{time.strftime('%Y%m%dT%H%M%S')}.log"
         cmd = [qrpose_bin, "serve", "--addr", "127.0.0.1:0", *args]
@@ -41,23 +42,27 @@ class Server:
         return cls(m.group(1), proc.pid, log, proc)
 
     def alive(self):
+        """The process still runs (an external one without a PID: assumed)."""
         if self.proc is not None:
             return self.proc.poll() is None
         return self.pid is None or Path(f"/proc/{self.pid}").exists()
 
     def cpu_s(self):
+        """User + system CPU seconds so far, or None."""
         if self.pid is None or not self.alive():
             return None
         fields = Path(f"/proc/{self.pid}/stat").read_text().rsplit(")", 1)[1].split()
         return (int(fields[11]) + int(fields[12])) / CLK_TCK
 
     def rss_mib(self):
+        """Resident memory, MiB, or None."""
         if self.pid is None or not self.alive():
             return None
         fields = Path(f"/proc/{self.pid}/statm").read_text().split()
         return int(fields[1]) * PAGE / (1 << 20)
 
     def panics(self):
+        """The log's lines that mention a panic (None without a log)."""
         if self.log is None or not Path(self.log).exists():
             return None
         text = Path(self.log).read_text(errors="replace")
