@@ -3,7 +3,9 @@
 # time per request of POST /v1/pose/corners and GET /healthz on four servers started side by
 # side from the same release binary: plain, with an auth file (bearer token checked on every
 # corners request), with TLS (kept-alive connections: the handshake is paid once per
-# connection), and with both.
+# connection), and with both. Then `reconnect`: /healthz with a new connection for every
+# request (`Connection: close`) on the plain and the TLS server, where TLS pays a full
+# handshake each time.
 #
 # Rounds alternate over the servers and endpoints, and each is reported by its median round,
 # so that load from other processes on a shared machine hits all of them alike. The server's
@@ -16,7 +18,9 @@
 #
 # Usage: scripts/security_load.sh   (installs wrk from Debian if missing; builds release)
 # Knobs: ROUNDS=3 DURATION_S=10 CONNECTIONS=32 WRK_THREADS=2 TARGET_RATIO=0.70
-#        CARGO_TARGET_DIR (where the release binary is built), RUST_LOG=info
+#        CARGO_TARGET_DIR (where the release binary is built), QRPOSE_BIN (a binary to use
+#        instead of building one), RUST_LOG=info, KEEP_LOGS=1 (keep the servers' access logs
+#        in target/security-load/; deleted by default, they run to gigabytes)
 # Only loopback traffic; every wrk run is bounded by its duration.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -39,8 +43,12 @@ for tool in wrk openssl; do
   fi
 done
 
-cargo build --release --quiet --bin qrpose
-BIN="${CARGO_TARGET_DIR:-target}/release/qrpose"
+if [[ -n "${QRPOSE_BIN:-}" ]]; then
+  BIN="$QRPOSE_BIN"
+else
+  cargo build --release --quiet --bin qrpose
+  BIN="${CARGO_TARGET_DIR:-target}/release/qrpose"
+fi
 
 # A certificate for localhost and 127.0.0.1 (P-256, one day), and a client holding `pose`.
 openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -days 1 \
@@ -100,6 +108,8 @@ run() {
   if [[ "$endpoint" == corners ]]; then
     args+=(-s "$OUT/corners.lua")
     path=/v1/pose/corners
+  elif [[ "$endpoint" == reconnect ]]; then
+    args+=(-H "Connection: close")
   fi
   local before
   before="$(cpu_ticks "$server")"
@@ -140,6 +150,9 @@ for ((r = 1; r <= ROUNDS; r++)); do
     run "$s" healthz "$DURATION_S" "$s-healthz-r$r"
     run "$s" corners "$DURATION_S" "$s-corners-r$r"
   done
+  for s in plain tls; do
+    run "$s" reconnect "$DURATION_S" "$s-reconnect-r$r"
+  done
 done
 
 status=0
@@ -151,6 +164,10 @@ for s in "${SERVERS[@]}"; do
     m="$(median_round "$s-$e")"
     echo "| $s | $e | $(rate "$m") | $(pct "$m" 50) | $(pct "$m" 99) | $(cpu_us "$m") | $(errors "$m") |"
   done
+done
+for s in plain tls; do
+  m="$(median_round "$s-reconnect")"
+  echo "| $s | healthz, a new connection each | $(rate "$m") | $(pct "$m" 50) | $(pct "$m" 99) | $(cpu_us "$m") | $(errors "$m") |"
 done
 echo
 total_errors=0
@@ -171,4 +188,6 @@ for s in "${SERVERS[@]}"; do
   fi
 done
 if (( total_errors != 0 )); then echo "FAIL: $total_errors errors"; status=1; else echo "PASS: zero errors"; fi
+# The access logs (one line per request) run to gigabytes: kept only on request.
+[[ -n "${KEEP_LOGS:-}" ]] || rm -f "$OUT"/*.log
 exit "$status"
