@@ -107,6 +107,19 @@ pub enum ErrorCode {
     Timeout,
     /// 503: the service is shutting down and takes no new work; retry on another instance.
     ShuttingDown,
+    /// 422: a calibration has fewer usable views than it needs: fewer than 3 photos, or
+    /// fewer than 3 with a code that gives enough points, or fewer left once the views that
+    /// do not fit are dropped.
+    TooFewViews,
+    /// 422: a calibration was sent more than 100 photos.
+    TooManyImages,
+    /// 422: the photos of a calibration are not all of one size.
+    MixedImageSizes,
+    /// 422: no QR code was decoded in any photo of a calibration.
+    NoCodeFound,
+    /// 422: the calibration's solve failed on these photos (e.g. every photo faces the
+    /// code squarely, so that focal length and distance cannot be told apart).
+    CalibrationFailed,
     /// 422: a tracker parameter of `GET /v1/stream` is outside its documented range.
     InvalidTrackerParameter,
     /// 426: `GET /v1/stream` asked for without a WebSocket upgrade.
@@ -185,6 +198,11 @@ impl ErrorCode {
             Overloaded => "Service overloaded",
             Timeout => "Request timed out",
             ShuttingDown => "Shutting down",
+            TooFewViews => "Too few usable views",
+            TooManyImages => "Too many images",
+            MixedImageSizes => "Images of different sizes",
+            NoCodeFound => "No QR code found",
+            CalibrationFailed => "Calibration failed",
             InvalidTrackerParameter => "Invalid tracker parameter",
             UpgradeRequired => "WebSocket upgrade required",
             Unauthorized => "Unauthorized",

@@ -7,7 +7,7 @@
 
 use super::context::unknown_marker_size;
 use super::problem::{ErrorCode, Problem};
-use crate::app::{CornersError, ImageError};
+use crate::app::{CalibrateError, CornersError, ImageError};
 use crate::detect::{
     DetectError,
     decode::DecodeError,
@@ -160,5 +160,39 @@ pub fn problem_from_marker_error(
             };
             problem_from_estimate_error(source, &format!("/markers/{index}/{list}"))
         }
+    }
+}
+
+/// The multipart part (and `qrpose calibrate` argument) of a calibration's photos.
+const PHOTOS_PART: &str = "image";
+
+/// The problem for photos the application could not calibrate from; `field` names the part
+/// `image` (the photos), with the photo's index where one photo is at fault.
+pub fn problem_from_calibrate_error(err: &CalibrateError) -> Problem {
+    let photo = |index: usize| format!("{PHOTOS_PART}/{index}");
+    match err {
+        CalibrateError::TooFewPhotos { .. } | CalibrateError::TooFewViews { .. } => {
+            Problem::new(ErrorCode::TooFewViews, err.to_string()).with_field(PHOTOS_PART)
+        }
+        CalibrateError::TooManyPhotos { .. } => {
+            Problem::new(ErrorCode::TooManyImages, err.to_string()).with_field(PHOTOS_PART)
+        }
+        CalibrateError::Decode { index, source } => {
+            let problem = problem_from_decode_error(source);
+            Problem::new(problem.code, err.to_string()).with_field(photo(*index))
+        }
+        CalibrateError::MixedSizes { index, .. } => {
+            Problem::new(ErrorCode::MixedImageSizes, err.to_string()).with_field(photo(*index))
+        }
+        CalibrateError::NoCodeFound { .. } => {
+            Problem::new(ErrorCode::NoCodeFound, err.to_string()).with_field(PHOTOS_PART)
+        }
+        CalibrateError::Calibration(e) => match e {
+            qrpose_calib::CalibrationError::TooFewViews { .. } => {
+                Problem::new(ErrorCode::TooFewViews, err.to_string()).with_field(PHOTOS_PART)
+            }
+            _ => Problem::new(ErrorCode::CalibrationFailed, err.to_string()),
+        },
+        CalibrateError::Cancelled => Problem::new(ErrorCode::Timeout, err.to_string()),
     }
 }

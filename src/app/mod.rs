@@ -9,6 +9,7 @@
 //! | [`estimate_corners`] | `POST /v1/pose/corners`, `qrpose estimate REQUEST.json` |
 //! | [`estimate_image`] | `POST /v1/pose/image` (and `/annotated`), `qrpose estimate --image` |
 //! | [`TrackSession::frame`] | each frame of `GET /v1/stream`, `qrpose track` |
+//! | [`calibrate_photos`] | `POST /v1/calibrate`, `qrpose calibrate` |
 //!
 //! Each operation takes the loaded site, if any, inside its [`Setup`], and returns a domain
 //! answer that `api::` maps to JSON. Nothing here names HTTP, JSON or a query parameter:
@@ -20,6 +21,7 @@
 //! `estimate::count`, which the tests read). Cancellation and the detection deadline travel
 //! in the detection budget ([`DetectSetup::budget`]).
 
+mod calibrate;
 mod corners;
 mod frames;
 mod image;
@@ -27,6 +29,10 @@ mod prior;
 mod setup;
 mod track;
 
+pub use calibrate::{
+    CalibrateAnswer, CalibrateError, CalibrateSetup, MAX_PHOTOS, MIN_PHOTOS, PhotoReport,
+    calibrate_photos,
+};
 pub use corners::{CornersAnswer, CornersError, estimate_corners};
 pub use frames::{InFrames, Localization, SiteFrames};
 pub use image::{ImageAnswer, ImageError, MarkerAnswer, Timing, estimate_decoded, estimate_image};

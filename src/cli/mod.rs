@@ -5,6 +5,7 @@
 //! stderr); 1 anything else (I/O, internal).
 
 mod auth;
+mod calibrate;
 mod estimate;
 mod healthcheck;
 mod openapi;
@@ -41,6 +42,10 @@ pub struct Cli {
 pub enum Command {
     /// Estimate a pose: prints what `POST /v1/pose/corners` would return.
     Estimate(estimate::EstimateArgs),
+    /// Calibrate the camera from 3 to 100 photos of a printed QR code: prints what
+    /// `POST /v1/calibrate` returns; `--out FILE.yaml` writes the OpenCV file a site file
+    /// reads.
+    Calibrate(calibrate::CalibrateArgs),
     /// Reproduce the paper's simulation (Table 10, Figures 8-12, Tables 5-9).
     Simulate(simulate::SimulateArgs),
     /// Run the HTTP service (docs/service.md) until SIGTERM or SIGINT.
@@ -109,6 +114,7 @@ pub fn report_parse_error(err: &clap::Error) -> ExitCode {
 pub fn run(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Estimate(args) => estimate::run(&args),
+        Command::Calibrate(args) => calibrate::run(&args),
         Command::Simulate(args) => simulate::run(&args).unwrap_or_else(|e| {
             eprintln!("qrpose simulate: {e:#}");
             ExitCode::FAILURE

@@ -5,6 +5,7 @@
 mod helpers;
 
 mod auth;
+mod calibrate;
 mod connections;
 mod corners;
 mod corners_bad_inputs;

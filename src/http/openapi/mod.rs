@@ -25,7 +25,7 @@ mod variants;
 pub use requests::Served;
 
 use super::error::ApiError;
-use super::routes::{annotated, corners, health, image, metrics, page, site};
+use super::routes::{annotated, calibrate, corners, health, image, metrics, page, site};
 use super::state::AppState;
 use crate::detect::Backend;
 use axum::body::Bytes;
@@ -83,6 +83,7 @@ documentation is at `/docs`.",
     ),
     tags(
         (name = "pose", description = "Pose estimation."),
+        (name = "calibration", description = "The camera calibrated from photos of a printed QR code (docs/calibration.md)."),
         (name = "operations", description = "Health, readiness, metrics and this document."),
         (name = "site", description = "The loaded site: cameras, marker sizes, mounts, map (docs/site.md)."),
         (name = "page", description = "The setup page for people (HTML)."),
@@ -96,6 +97,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(corners::pose_from_corners))
         .routes(routes!(image::pose_from_image))
         .routes(routes!(annotated::pose_from_image_annotated))
+        .routes(routes!(calibrate::calibrate))
         .routes(routes!(page::setup_page))
         .routes(routes!(health::healthz))
         .routes(routes!(health::readyz))

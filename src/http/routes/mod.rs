@@ -1,6 +1,7 @@
 //! One file per endpoint: the handler and its `#[utoipa::path]`.
 
 pub mod annotated;
+pub mod calibrate;
 pub mod corners;
 pub mod docs;
 pub mod health;

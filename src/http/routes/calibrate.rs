@@ -1,0 +1,276 @@
+//! `POST /v1/calibrate`: the camera calibrated from 3 to 100 photos of a printed QR code.
+//! The multipart body (parts `image`, repeated, and `request`) is read whole, within the
+//! body limit, by [`CalibrateInput`]; parsing the request, [`crate::api::calibrate::respond`]
+//! (decoding, detection and the solve) and serialising run on an estimation worker, which
+//! first takes the pixel budget of the largest photo (they are decoded one at a time).
+
+use crate::api::calibrate::{CalibrateRequest, CalibrateResponse, respond};
+use crate::api::problem::{ErrorCode, Problem, parse_json};
+use crate::app::ImageLimits;
+use crate::detect::cancel::CancelFlag;
+use crate::http::{
+    error::ApiError,
+    extract::{self, BodyError, JsonBytes},
+    image_input::{IMAGE_PART, MULTIPART, REQUEST_PART},
+    queue::BudgetPermit,
+    state::AppState,
+};
+use axum::body::Bytes;
+use axum::extract::{FromRequest, Multipart, Request, State};
+use axum::http::StatusCode;
+use utoipa::ToSchema;
+
+/// The route.
+pub const PATH: &str = "/v1/calibrate";
+
+// Documentation only: the handler reads the parts itself, so that every mistake is answered
+// with a problem document.
+/// The multipart form of `POST /v1/calibrate`: the photos and the request.
+#[derive(Debug, ToSchema)]
+pub struct CalibrateForm {
+    /// The photos, one part `image` each, 3 to 100, from one camera at one resolution: JPEG
+    /// or PNG bytes (the format is read from the bytes).
+    #[schema(schema_with = photos_schema)]
+    pub image: Vec<Vec<u8>>,
+    /// The request as JSON (`application/json`): the printed code's size and the lens model.
+    pub request: CalibrateRequest,
+}
+
+/// The `image` parts: 3 to 100 files of bytes (`format: binary` beside the 3.1
+/// `contentMediaType`, for generators that read only the OpenAPI 3.0 form).
+fn photos_schema() -> utoipa::openapi::schema::Array {
+    use utoipa::openapi::schema::{ArrayBuilder, KnownFormat, ObjectBuilder, SchemaFormat, Type};
+    let photo = ObjectBuilder::new()
+        .schema_type(Type::String)
+        .format(Some(SchemaFormat::KnownFormat(KnownFormat::Binary)))
+        .content_media_type("application/octet-stream");
+    ArrayBuilder::new()
+        .items(photo)
+        .min_items(Some(crate::app::MIN_PHOTOS))
+        .max_items(Some(crate::app::MAX_PHOTOS))
+        .description(Some(
+            "The photos, one part `image` each, 3 to 100, from one camera at one resolution: \
+             JPEG or PNG bytes (the format is read from the bytes).",
+        ))
+        .build()
+}
+
+/// Calibrate the camera from photos of a printed QR code.
+///
+/// Send 3 to 100 photos of one printed QR code (JPEG or PNG, one camera, one resolution),
+/// each a part `image` of a `multipart/form-data` body, and a part `request` (JSON: the
+/// code's `marker.size_mm`, and the lens `model`: `plumb_bob`, `rational_polynomial` or
+/// `equidistant`). Each photo's decoded code gives its finder corners, alignment centres
+/// and module corners; Zhang's method and one robust Levenberg-Marquardt give the camera,
+/// one standard deviation per parameter, each photo's fit (views that do not fit are
+/// dropped, with the reason) and warnings when the photos do not constrain the solution
+/// (too few views, one angle only, image corners never covered, a focal length uncertain
+/// by more than 0.5 %). `opencv_yaml` and `ros_camera_info_yaml` are files that a site
+/// file's `calibration:` reads as they are. The same JSON as `qrpose calibrate`. Many large
+/// photos may need a longer `--request-timeout-ms` than the default.
+#[utoipa::path(
+    post,
+    path = "/v1/calibrate",
+    tag = "calibration",
+    operation_id = "calibrate",
+    request_body(
+        description = "A multipart form with 3 to 100 parts `image` and one part `request`.",
+        content((inline(CalibrateForm) = "multipart/form-data")),
+    ),
+    responses(
+        (status = 200, description = "The camera, its standard deviations, every photo's \
+            view, the warnings and the calibration files.", body = CalibrateResponse),
+        (status = 400, description = "`malformed_multipart`: the multipart body cannot be \
+            parsed (no boundary, broken framing, a part without a name, `request` twice); \
+            `malformed_json`: the `request` part is not JSON.",
+            body = Problem, content_type = "application/problem+json"),
+        (status = 413, description = "`payload_too_large`: the body exceeds the configured \
+            limit (`--body-limit-bytes`); `image_too_large`: a photo declares more pixels \
+            than the configured limit (`--max-image-pixels`); `field` is `image/K`, K the \
+            photo's index.",
+            body = Problem, content_type = "application/problem+json"),
+        (status = 415, description = "`unsupported_media_type`: the Content-Type is not \
+            `multipart/form-data`.",
+            body = Problem, content_type = "application/problem+json"),
+        (status = 422, description = "A well-formed request that gives no calibration. \
+            `too_few_views`: fewer than 3 photos, fewer than 3 with a code giving enough \
+            points, or fewer left once the views that do not fit are dropped; \
+            `too_many_images`: more than 100 photos; `mixed_image_sizes`: a photo of another \
+            size than the first (`field` `image/K`); `no_code_found`: no QR code decoded in \
+            any photo; `undecodable_image` (`field` `image/K`); `calibration_failed`: the \
+            solve failed (every photo facing the code squarely); `missing_field` (the part \
+            `image` or `request`, or `marker.size_mm`), `unknown_field`, `invalid_type`, \
+            `unknown_variant` (`model`), `invalid_marker_size`.",
+            body = Problem, content_type = "application/problem+json",
+            example = json!({"type": "urn:qrpose:problem:too_few_views",
+                "title": "Too few usable views", "status": 422,
+                "detail": "2 of 4 photos show a code with at least 8 calibration points; a calibration needs at least 3 (photos without a code: 1, 3)",
+                "code": "too_few_views", "field": "image"})),
+        (status = 503, description = "`overloaded`: every estimation worker is busy and the \
+            queue is full; `timeout`: the request did not finish within the configured time. \
+            Retry after `Retry-After` seconds.",
+            body = Problem, content_type = "application/problem+json",
+            headers(("Retry-After" = u32, description = "Seconds to wait before retrying"))),
+        (status = 500, description = "`internal`: a fault of the service, never of the \
+            request; the cause is logged under the response's `x-request-id`.",
+            body = Problem, content_type = "application/problem+json"),
+    )
+)]
+pub async fn calibrate(
+    State(state): State<AppState>,
+    input: CalibrateInput,
+) -> Result<JsonBytes, ApiError> {
+    let limits = state.image_limits();
+    let pixels = input
+        .photos
+        .iter()
+        .map(|p| crate::detect::decode::admission_pixels(p, limits.decode.max_pixels))
+        .max()
+        .unwrap_or(0);
+    let json = state
+        .queue
+        .run_image(pixels, move |cancel| {
+            answer_as_json(&input, &limits, &cancel)
+        })
+        .await??;
+    Ok(JsonBytes(json))
+}
+
+/// Parses the request part, calibrates and serialises, on the estimation worker.
+fn answer_as_json(
+    input: &CalibrateInput,
+    limits: &ImageLimits,
+    cancel: &CancelFlag,
+) -> Result<Vec<u8>, ApiError> {
+    let request = parse_json::<CalibrateRequest>(&input.request_json)?;
+    let response = respond(&request, limits, &input.photos, cancel)?;
+    serde_json::to_vec(&response).map_err(ApiError::internal)
+}
+
+/// The body of `POST /v1/calibrate`: the photos and the `request` part, not yet parsed.
+#[derive(Debug, Clone)]
+pub struct CalibrateInput {
+    /// The `image` parts, in order.
+    pub photos: Vec<Bytes>,
+    /// The `request` part.
+    pub request_json: Bytes,
+}
+
+impl FromRequest<AppState> for CalibrateInput {
+    type Rejection = ApiError;
+
+    async fn from_request(request: Request, state: &AppState) -> Result<Self, ApiError> {
+        let limit_bytes = state.settings.body_limit_bytes;
+        if extract::media_type(request.headers()).as_deref() != Some(MULTIPART) {
+            let refusal = ApiError::unsupported_media_type(
+                extract::media_type(request.headers()).as_deref(),
+                MULTIPART,
+            );
+            extract::discard_body(request, limit_bytes).await;
+            return Err(refusal);
+        }
+        let declared =
+            extract::declared_length(request.headers()).map_or(limit_bytes, |n| n.min(limit_bytes));
+        let permit = state
+            .queue
+            .take_body_bytes(u64::try_from(declared).unwrap_or(u64::MAX))?;
+        let request = extract::buffer_body(request, limit_bytes, |bytes| {
+            Bytes::from_owner(Budgeted {
+                bytes,
+                _permit: permit,
+            })
+        })
+        .await
+        .map_err(|e| match e {
+            BodyError::TooLarge { limit_bytes } => ApiError::payload_too_large(limit_bytes),
+            BodyError::Unreadable { .. } => malformed(e.to_string(), None),
+        })?;
+        let mut multipart = Multipart::from_request(request, state)
+            .await
+            .map_err(|rejection| malformed(rejection.body_text(), None))?;
+        let (mut photos, mut request_json) = (Vec::new(), None);
+        let part_error = |e: &axum::extract::multipart::MultipartError, part: Option<&str>| {
+            if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
+                ApiError::payload_too_large(limit_bytes)
+            } else {
+                malformed(e.body_text(), part.map(str::to_owned))
+            }
+        };
+        while let Some(part) = multipart
+            .next_field()
+            .await
+            .map_err(|e| part_error(&e, None))?
+        {
+            let name = part.name().map(str::to_owned).ok_or_else(|| {
+                malformed(
+                    format!(
+                        "a part has no name; send the parts `{IMAGE_PART}` and `{REQUEST_PART}`"
+                    ),
+                    None,
+                )
+            })?;
+            let bytes = part
+                .bytes()
+                .await
+                .map_err(|e| part_error(&e, Some(&name)))?;
+            match name.as_str() {
+                IMAGE_PART => photos.push(bytes),
+                REQUEST_PART if request_json.is_some() => {
+                    return Err(malformed(
+                        format!("the part `{REQUEST_PART}` is given twice"),
+                        Some(name),
+                    ));
+                }
+                REQUEST_PART => request_json = Some(bytes),
+                _ => {
+                    return Err(Problem::new(
+                        ErrorCode::UnknownField,
+                        format!(
+                            "unknown part `{name}`; send the parts `{IMAGE_PART}` (repeated) and `{REQUEST_PART}`"
+                        ),
+                    )
+                    .with_field(name)
+                    .into());
+                }
+            }
+        }
+        if photos.is_empty() {
+            return Err(missing_part(IMAGE_PART));
+        }
+        let request_json = request_json.ok_or_else(|| missing_part(REQUEST_PART))?;
+        Ok(Self {
+            photos,
+            request_json,
+        })
+    }
+}
+
+/// Body bytes that give their share of the body budget back when the last reference to them
+/// is dropped (the photos refer into the body).
+struct Budgeted {
+    bytes: Bytes,
+    _permit: BudgetPermit,
+}
+
+impl AsRef<[u8]> for Budgeted {
+    fn as_ref(&self) -> &[u8] {
+        &self.bytes
+    }
+}
+
+fn malformed(detail: impl Into<String>, part: Option<String>) -> ApiError {
+    let problem = Problem::new(ErrorCode::MalformedMultipart, detail);
+    ApiError::from(match part {
+        Some(part) => problem.with_field(part),
+        None => problem,
+    })
+}
+
+fn missing_part(name: &str) -> ApiError {
+    Problem::new(
+        ErrorCode::MissingField,
+        format!("the multipart body has no part `{name}`"),
+    )
+    .with_field(name)
+    .into()
+}
