@@ -3,6 +3,8 @@
 // z forward; pixels with integer coordinates at pixel centres; p_cam = R·p_marker + t.
 // Stable hooks for tests and people: ids, and data-field / data-value on every number.
 // The live camera mode (GET /v1/stream) is camera.js, which uses the helpers below.
+// With an auth file on the service (docs/security.md), a 401 asks for a bearer token, kept
+// for this tab only (sessionStorage) and sent with every call after it.
 "use strict";
 
 const IMAGE_PATH = "/v1/pose/image";
@@ -23,6 +25,82 @@ const WARNING_TEXT = {
 
 const $ = (id) => document.getElementById(id);
 const state = { fileReady: Promise.resolve(), file: null, bitmap: null, response: null, camera: null, siteCameras: null, siteLoaded: false };
+
+// ---- the bearer token (docs/security.md) -------------------------------------------------
+
+/** This tab's token: sessionStorage, which the tab alone sees and which ends with it (never
+ * localStorage or a cookie). `memory` stands in when the browser refuses storage. */
+const TOKEN_KEY = "qrpose.token";
+const token = { memory: "", waiting: null, resolve: null };
+
+function storedToken() {
+  try {
+    return sessionStorage.getItem(TOKEN_KEY) || token.memory;
+  } catch (_) {
+    return token.memory;
+  }
+}
+
+function keepToken(value) {
+  token.memory = value;
+  try {
+    sessionStorage.setItem(TOKEN_KEY, value);
+  } catch (_) { /* storage refused: kept in memory for this page */ }
+}
+
+/** `init` with `Authorization: Bearer` when the tab has a token. */
+function withToken(init) {
+  const value = storedToken();
+  if (!value) return init || {};
+  const headers = new Headers((init && init.headers) || undefined);
+  headers.set("Authorization", "Bearer " + value);
+  return Object.assign({}, init, { headers });
+}
+
+/** Shows the token prompt after a 401 (`problem`: its problem+json, or null); resolves true
+ * once a token is given, false when the prompt is cancelled. One prompt at a time. */
+function askForToken(problem) {
+  if (token.waiting) return token.waiting;
+  const refused = storedToken() !== "";
+  $("token-reason").textContent = (refused ? "The service refused this tab's token" : "The service asks for a bearer token")
+    + (problem && problem.detail ? ": " + problem.detail : ".");
+  $("token-input").value = "";
+  $("token-panel").hidden = false;
+  $("token-input").focus();
+  token.waiting = new Promise((resolve) => { token.resolve = resolve; });
+  return token.waiting;
+}
+
+function closeTokenPrompt(given) {
+  $("token-panel").hidden = true;
+  const resolve = token.resolve;
+  token.waiting = null;
+  token.resolve = null;
+  if (resolve) resolve(given);
+}
+
+function submitToken(event) {
+  event.preventDefault();
+  const value = $("token-input").value.trim();
+  if (!value) {
+    $("token-input").focus();
+    return;
+  }
+  keepToken(value);
+  $("token-input").value = "";
+  closeTokenPrompt(true);
+}
+
+/** fetch with this tab's token; a 401 asks for a token and sends the request again, until it
+ * passes or the prompt is cancelled (then the 401 is the answer). */
+async function apiFetch(url, init) {
+  for (;;) {
+    const response = await fetch(url, withToken(init));
+    if (response.status !== 401) return response;
+    const problem = await response.clone().json().catch(() => null);
+    if (!(await askForToken(problem))) return response;
+  }
+}
 
 // ---- the request -------------------------------------------------------------------------
 
@@ -78,8 +156,11 @@ function shellQuote(text) {
 function curlCommand(json) {
   const name = state.file.name.replace(/["\\]/g, "\\$&");
   const type = state.file.type || "application/octet-stream";
+  // The token itself is never printed: the command reads it from $QRPOSE_TOKEN.
+  const auth = storedToken() ? ['  -H "Authorization: Bearer $QRPOSE_TOKEN" \\'] : [];
   return [
     "curl -sS -X POST " + shellQuote(location.origin + IMAGE_PATH) + " \\",
+    ...auth,
     "  -F " + shellQuote('image=@"' + name + '";type=' + type) + " \\",
     "  -F " + shellQuote("request=" + json + ";type=application/json"),
   ].join("\n");
@@ -381,7 +462,7 @@ async function send(event) {
   $("status").textContent = "Estimating…";
   const started = performance.now();
   try {
-    const response = await fetch(IMAGE_PATH, { method: "POST", body: formData(json) });
+    const response = await apiFetch(IMAGE_PATH, { method: "POST", body: formData(json) });
     state.roundTripMs = performance.now() - started;
     if (response.ok) {
       showResults(await response.json(), json);
@@ -400,7 +481,7 @@ async function send(event) {
 
 async function downloadAnnotated() {
   if (!state.file) return;
-  const response = await fetch(ANNOTATED_PATH, { method: "POST", body: formData(requestJson(cameraFromForm())) });
+  const response = await apiFetch(ANNOTATED_PATH, { method: "POST", body: formData(requestJson(cameraFromForm())) });
   if (!response.ok) { await showProblem(response); return; }
   const url = URL.createObjectURL(await response.blob());
   const link = el("a", { href: url, download: state.file.name.replace(/\.[^.]*$/, "") + "-annotated.jpg" });
@@ -415,7 +496,7 @@ async function loadSite() {
   if (state.siteLoaded) return;
   state.siteLoaded = true;
   try {
-    const response = await fetch(SITE_PATH);
+    const response = await apiFetch(SITE_PATH);
     if (!response.ok) {
       $("site-status").textContent = "This server has no site file (GET " + SITE_PATH + " answered " + response.status + "): type the camera id.";
       return;
@@ -483,6 +564,8 @@ document.addEventListener("DOMContentLoaded", () => {
   $("camera-mode-id").addEventListener("change", cameraModeChanged);
   $("download-annotated").addEventListener("click", downloadAnnotated);
   $("copy-curl").addEventListener("click", copyCurl);
+  $("token-form").addEventListener("submit", submitToken);
+  $("token-cancel").addEventListener("click", () => closeTokenPrompt(false));
   setUpDrop();
   document.body.dataset.ready = "true";
 });

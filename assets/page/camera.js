@@ -2,7 +2,9 @@
 // WebSocket GET /v1/stream (docs/stream.md) and draws every track's filtered pose, id,
 // payload and status over the live picture. Runs after app.js and uses its helpers ($, el,
 // fixed, cameraFromForm, numberOrNull, projectAxes, project, line, drawAxes, markerSideMm,
-// vec, showError). Conventions as docs/conventions.md: camera frame x right, y down,
+// vec, showError, storedToken, withToken, askForToken). A browser's WebSocket cannot send
+// headers, so the tab's token goes as the subprotocol `bearer.TOKEN` beside `qrpose`
+// (docs/security.md); a stream refused with 401 asks for a token and starts again. Conventions as docs/conventions.md: camera frame x right, y down,
 // z forward; pixel centres at integers.
 // Flow control: at most FRAMES_IN_FLIGHT frames sent and not yet answered; the next frame is
 // grabbed when an answer arrives, so nothing queues, here or in the service.
@@ -109,7 +111,7 @@ function problemWords(problem) {
  * is fine (426: only the upgrade is missing) or the service cannot be reached. */
 async function refusal(query) {
   try {
-    const response = await fetch(STREAM_PATH + "?" + query);
+    const response = await fetch(STREAM_PATH + "?" + query, withToken());
     const type = response.headers.get("content-type") || "";
     if (response.status === 426 || !type.includes("json")) return null;
     return Object.assign({ status: response.status }, await response.json());
@@ -376,7 +378,8 @@ async function startCamera() {
   await new Promise((resolve) => (video.videoWidth > 0 ? resolve() : video.addEventListener("loadedmetadata", resolve, { once: true })));
   await video.play().catch(() => undefined);
   $("live-note").textContent = resolutionNote(live.camera, video.videoWidth, video.videoHeight);
-  $("live-command").textContent = "websocat '" + streamUrl(live.query) + "'";
+  $("live-command").textContent = "websocat " + (storedToken() ? '-H "Authorization: Bearer $QRPOSE_TOKEN" ' : "")
+    + "'" + streamUrl(live.query) + "'";
   $("live-heading").focus();
   if (live.media) openSocket(); // else Stop was pressed meanwhile
 }
@@ -386,7 +389,8 @@ function openSocket() {
   live.sentAt.clear();
   live.sideByTrack.clear();
   setLiveStatus("Opening the stream…", "connecting");
-  const socket = new WebSocket(streamUrl(live.query));
+  const value = storedToken();
+  const socket = value ? new WebSocket(streamUrl(live.query), ["qrpose", "bearer." + value]) : new WebSocket(streamUrl(live.query));
   live.socket = socket;
   socket.addEventListener("open", () => {
     live.opened = true;
@@ -410,6 +414,10 @@ async function onClose(socket, event) {
     return;
   }
   const problem = live.opened ? null : await refusal(live.query);
+  if (problem && problem.status === 401 && await askForToken(problem)) {
+    startCamera();
+    return;
+  }
   if (problem) {
     setLiveStatus("The service refused the stream: " + problemWords(problem) + ".", "refused");
     showError(problem.title || "Stream refused", problem.detail,

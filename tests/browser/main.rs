@@ -4,7 +4,8 @@
 //! pose projected, the alternative pose must draw on request, a non-image file must show the
 //! problem's title and detail, and the page must load fast, from this server only, with no
 //! console error, every control labelled and keyboard use alone enough. The live camera mode
-//! (a fake camera playing a rendered video, over `GET /v1/stream`) is tested in [`camera`].
+//! (a fake camera playing a rendered video, over `GET /v1/stream`) is tested in [`camera`];
+//! the token prompt of a service with an auth file in [`auth`].
 //!
 //! Needs `/usr/bin/chromium` and `/usr/bin/chromedriver` (Debian's `chromium` and
 //! `chromium-driver`: `.ci/run` installs them, and so do these tests when they are missing and
@@ -12,6 +13,7 @@
 //! `QRPOSE_WRITE_SCREENSHOTS=1` writes the desktop, phone and live camera screenshots to
 //! `docs/img/`.
 
+mod auth;
 mod camera;
 #[path = "../support/mod.rs"]
 mod support;
