@@ -22,8 +22,9 @@ ground truth: `codes[].payload` and `codes[].truth.corners_px`; the camera is
 
 Step 2, the reading: `qrpose estimate --image OUT/scene-SEED.jpg --fx-px .. --fy-px .. --cx-px ..
 --cy-px .. --marker-size-mm 50 [--qrpose-flag ...]` with the renderer's camera (time = its
-`timing_ms.decode + timing_ms.detect`), and zxing-cpp (Pillow decode to grey +
-`read_barcodes(formats=QRCode)`, timed together) on the same bytes, as scripts/photo_bench.py
+`timing_ms.decode + timing_ms.detect`), and zxing-cpp (OpenCV's greyscale decode +
+`read_barcodes(formats=QRCode)`, timed together; Pillow's decode timed too, as a second ratio)
+on the same bytes, as scripts/photo_bench.py
 (scripts/photo_common.py has the shared runners). A code is READ when a returned quadrilateral
 whose payload equals the code's payload overlaps its truth corners with IoU >= 0.5 (IoU of the
 convex hulls), matched one-to-one, greedily by IoU. A quadrilateral with IoU >= 0.5 and another
@@ -40,7 +41,7 @@ frame), read % by code size, the misses per frame, misreads, qrpose failures, an
 where qrpose warned `detection_budget_exhausted` (its detection deadline is wall-clock time, so
 on a loaded machine it reads less: compare runs at similar load, or pass
 --qrpose-flag=--max-detect-ms=N). --json OUT.json: per-frame details.
-Runs in target/photo-venv (zxing-cpp, numpy, Pillow; created on first use).
+Runs in target/photo-venv (zxing-cpp, numpy, Pillow, OpenCV; created on first use).
 """
 import argparse, hashlib, json, math, random, subprocess, sys, time
 from pathlib import Path
@@ -217,7 +218,7 @@ def main():
           f"flags: `{' '.join(flags) or '(none)'}`; frames rendered by `{render_bin}`, seeds "
           f"{seeds.start}..{seeds.stop - 1}, {args.width_px}x{args.height_px}, JPEG 75-95, blur "
           f"0.5-1.2 px, noise 1-4 (frames sha256 {env['frames_sha256'][:12]}); zxing-cpp "
-          f"{env['zxing_cpp']} (PyPI), Pillow {env['pillow']}, decode `{args.zxing_decode}`.")
+          f"{env['zxing_cpp']} (PyPI), Pillow {env['pillow']}, OpenCV {env['opencv']}, primary decode `{args.zxing_decode}`.")
     print(f"Read = quadrilateral with the code's payload and IoU >= 0.5 to its truth corners; "
           f"times in ms per frame: qrpose timing_ms.decode + detect, zxing-cpp decode + "
           f"read_barcodes. Size = shortest side of the truth quadrilateral. Load average "
@@ -253,6 +254,14 @@ def main():
         only_q = sum(len(set(r["qrpose"]["read"]) - set(r["zxing"]["read"])) for r in records)
         only_z = sum(len(set(r["zxing"]["read"]) - set(r["qrpose"]["read"])) for r in records)
         print(f"Codes read by both: {both}; by qrpose only: {only_q}; by zxing-cpp only: {only_z}.")
+        for dec, label in (("opencv", "OpenCV"), ("pillow", "Pillow")):
+            x = pc.ratio_stats([(r["qrpose"]["ms"], r["zxing"].get(f"ms_{dec}")) for r in records
+                                if r["qrpose"]["ok"] and r["zxing"]["ok"]])
+            summary[f"ratio_{dec}"] = x
+            if x:
+                print(f"Time, qrpose / zxing-cpp with {label}'s decode: ratio of the medians "
+                      f"{x['of_medians']:.2f}; frame by frame median {x['median']:.2f}, p90 "
+                      f"{x['p90']:.2f}.")
 
     print("\nMisses per frame (size px, px/module, distance, tilt; who missed):")
     any_miss = False

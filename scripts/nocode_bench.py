@@ -13,20 +13,23 @@ Step 1, the set (deterministic): for every photo of MANIFEST_DIR/manifest.json (
 landscape, in the stored pixel grid: EXIF orientation is not applied, as qrpose does not) whose
 position is drawn from random.Random(f"{seed}:{path}:{size}") (--seed, default 12) until it
 intersects no labelled quadrilateral's bounding box grown by 10 % of its width / height on
-each side (--margin); after --tries (30) misses that size is skipped for that photo. The
-windows are cut from the RGB-decoded photo and written as JPEG quality 90 (Pillow defaults
-otherwise: 4:2:0, no EXIF) to target/nocode/ (--out), with target/nocode/crops.json listing
-them and the parameters; a later run reuses the crops when crops.json's parameters (source
+each side (--margin); after --tries (30) misses that size is skipped for that photo. Each
+window is cut from the RGB-decoded photo and written twice as JPEG quality 90 (Pillow
+defaults otherwise: 4:2:0, no EXIF): in colour, and in grey (`convert('L')`, one component:
+what a monochrome robot camera sends) as `..._grey.jpg`, to target/nocode/ (--out), with
+target/nocode/crops.json listing them and the parameters; another --seed gives other
+windows, crops not tuned on; a later run reuses the crops when crops.json's parameters (source
 manifest's hash, seed, sizes, margin, tries, quality, Pillow version) match and every file is
 there with its recorded hash, and rebuilds them otherwise. Photos are never copied: only the
 crops, under target/ (git-ignored).
 
 Step 2, the timing: for each crop, `qrpose estimate --image CROP ...` (time = its
 `timing_ms.decode + timing_ms.detect`; intrinsics F = max(w, h), centre (w-1)/2, (h-1)/2;
-extra --qrpose-flag values forwarded as given) and zxing-cpp (Pillow decode to grey +
-`read_barcodes(formats=QRCode)`, median of --repeat runs), same bytes. Prints count, median,
-p95 and max of each, and the qrpose / zxing-cpp ratios of the medians and p95s, for 720p,
-1080p and all; then the crops where either reader decoded a code (should be about none: a
+extra --qrpose-flag values forwarded as given) and right after it zxing-cpp (OpenCV's
+`imdecode(..., IMREAD_GRAYSCALE)` + `read_barcodes(formats=QRCode)`, median of --repeat runs;
+Pillow's RGB decode + convert('L') timed too, as a second figure), same bytes. Prints count,
+median, p95 and max of each, and the qrpose / zxing-cpp ratios of the medians and p95s (with
+OpenCV's decode, then with Pillow's), for colour and grey crops at 720p and 1080p, and all; then the crops where either reader decoded a code (should be about none: a
 hit is an unlabelled code in the photo or a false positive; listed), qrpose detections
 without a payload, and qrpose failures (non-zero exit, --timeout). --json OUT.json: per-crop
 details. --limit N: only the first N crops of each size (quick checks); --repeat N and
@@ -41,6 +44,7 @@ import photo_common as pc  # noqa: E402
 
 SIZES = [(1280, 720), (1920, 1080)]
 NAMES = {(1280, 720): "720p", (1920, 1080): "1080p"}
+KINDS = ["colour", "grey"]
 
 
 def sha256(data):
@@ -72,7 +76,8 @@ def build_set(root, manifest_bytes, out_dir, args):
     # to the same folder must reuse the same crops).
     params = {"source_manifest_sha256": sha256(manifest_bytes), "seed": args.seed,
               "sizes": SIZES, "margin": args.margin, "tries": args.tries, "jpeg_quality": 90,
-              "pillow": PIL.__version__, "exif_orientation": "not applied"}
+              "pillow": PIL.__version__, "exif_orientation": "not applied",
+              "kinds": KINDS}
     index = out_dir / "crops.json"
     if index.exists():
         try:
@@ -112,10 +117,13 @@ def build_set(root, manifest_bytes, out_dir, args):
         with Image.open(path) as im:
             rgb = im.convert("RGB")
         for (cw, ch), box in windows.items():
-            name = f"{e['path'].rsplit('.', 1)[0].replace('/', '__')}__{cw}x{ch}.jpg"
-            rgb.crop(box).save(out_dir / name, "JPEG", quality=90)
-            crops.append({"file": name, "source": e["path"], "group": e["group"], "size": [cw, ch],
-                          "box": box, "sha256": sha256((out_dir / name).read_bytes())})
+            for kind in KINDS:
+                suffix = "" if kind == "colour" else "_grey"
+                name = f"{e['path'].rsplit('.', 1)[0].replace('/', '__')}__{cw}x{ch}{suffix}.jpg"
+                crop = rgb.crop(box)
+                (crop if kind == "colour" else crop.convert("L")).save(out_dir / name, "JPEG", quality=90)
+                crops.append({"file": name, "source": e["path"], "group": e["group"], "size": [cw, ch],
+                              "kind": kind, "box": box, "sha256": sha256((out_dir / name).read_bytes())})
         print(f"[{n}/{len(manifest['images'])}] {e['path']}: {len(windows)} crop(s)",
               file=sys.stderr, flush=True)
     out = {"params": params, "source_manifest": str((root / "manifest.json").resolve()), "crops": crops, "skipped": skipped,
@@ -150,7 +158,8 @@ def main():
     crop_set = build_set(root, (root / "manifest.json").read_bytes(), Path(args.out), args)
     crops = crop_set["crops"]
     if args.limit is not None:
-        crops = [c for s in SIZES for c in [c for c in crops if tuple(c["size"]) == s][:args.limit]]
+        crops = [c for s in SIZES for k in KINDS
+                 for c in [c for c in crops if tuple(c["size"]) == s and c["kind"] == k][:args.limit]]
     env = pc.environment(args, args.qrpose_bin)
     if not args.no_zxing:
         pc.warm_up_zxing()
@@ -170,13 +179,15 @@ def main():
     env["loadavg_end"] = __import__("os").getloadavg()
     env["elapsed_s"] = round(time.time() - t_start, 1)
 
-    sets = [(NAMES[s], [r for r in records if tuple(r["size"]) == s]) for s in SIZES]
+    sets = [(f"{NAMES[s]} {k}", [r for r in records if tuple(r["size"]) == s and r["kind"] == k])
+            for s in SIZES for k in KINDS]
+    sets += [(f"{k}, all", [r for r in records if r["kind"] == k]) for k in KINDS]
     sets.append(("**all**", records))
     summary = {}
     n_skip = len({s["source"] for s in crop_set["skipped"]})
     print(f"qrpose: `{env['qrpose_bin']}` (built {env['qrpose_bin_mtime']}, tree {env['git_head']}), "
           f"flags: `{' '.join(flags) or '(none)'}`; zxing-cpp {env['zxing_cpp']} (PyPI), Pillow "
-          f"{env['pillow']}, decode `{args.zxing_decode}`, runs per image: qrpose {args.qrpose_repeat}, zxing-cpp {args.repeat} (median). "
+          f"{env['pillow']}, OpenCV {env['opencv']}, primary decode `{args.zxing_decode}`, runs per image: qrpose {args.qrpose_repeat}, zxing-cpp {args.repeat} (median). "
           f"{len(crop_set['crops'])} crops from {len({c['source'] for c in crop_set['crops']})} photos "
           f"(seed {args.seed}, margin {args.margin:g}; {len(crop_set['skipped'])} photo/size pairs "
           f"skipped: photo too small or no code-free window; {n_skip} photos lack one size or both), JPEG q90, EXIF orientation not applied. Times in ms: "
@@ -184,23 +195,28 @@ def main():
           f"{env['loadavg_start'][0]:.1f} -> {env['loadavg_end'][0]:.1f} on {env['cpus']} CPUs; "
           f"{env['elapsed_s']} s.\n")
     print("| set | crops | qrpose median | qrpose p95 | qrpose max | zxing-cpp median | zxing-cpp p95 | "
-          "zxing-cpp max | ratio of medians | ratio of p95s | crops with a code (qrpose / zxing-cpp) | qrpose failures |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "zxing-cpp max | ratio of medians | ratio of p95s | ratios with Pillow's decode (medians / p95s) | "
+          "crops with a code (qrpose / zxing-cpp) | qrpose failures |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name, rs in sets:
         qs = stats([r["qrpose"]["ms"] for r in rs])
         zs = stats([r["zxing"]["ms"] for r in rs if r["zxing"]]) if not args.no_zxing else None
+        other = "ms_pillow" if args.zxing_decode == "opencv" else "ms_opencv"
+        zp = stats([r["zxing"][other] for r in rs if r["zxing"]]) if not args.no_zxing else None
         qhit = sum(1 for r in rs if any(m["payload"] for m in r["qrpose"]["markers"]))
         zhit = sum(1 for r in rs if r["zxing"] and any(m["payload"] for m in r["zxing"]["results"]))
         fails = sum(1 for r in rs if not r["qrpose"]["ok"])
-        summary[name.strip("*")] = {"qrpose": qs, "zxing": zs, "qrpose_hits": qhit, "zxing_hits": zhit,
-                                    "qrpose_failures": fails}
+        summary[name.strip("*")] = {"qrpose": qs, "zxing": zs, "zxing_other_decode": zp,
+                                    "qrpose_hits": qhit, "zxing_hits": zhit, "qrpose_failures": fails}
         f = pc.fmt_ms
         if zs:
             ratio_m = f"{qs['median'] / zs['median']:.2f}" if zs["median"] else "–"
             ratio_p = f"{qs['p95'] / zs['p95']:.2f}" if zs["p95"] else "–"
-            zcols = f"{f(zs['median'])} | {f(zs['p95'])} | {f(zs['max'])} | {ratio_m} | {ratio_p}"
+            other_r = (f"{qs['median'] / zp['median']:.2f} / {qs['p95'] / zp['p95']:.2f}"
+                       if zp["median"] and zp["p95"] else "–")
+            zcols = f"{f(zs['median'])} | {f(zs['p95'])} | {f(zs['max'])} | {ratio_m} | {ratio_p} | {other_r}"
         else:
-            zcols = "– | – | – | – | –"
+            zcols = "– | – | – | – | – | –"
         print(f"| {name} | {len(rs)} | {f(qs['median'])} | {f(qs['p95'])} | {f(qs['max'])} | {zcols} | "
               f"{qhit} / {'–' if args.no_zxing else zhit} | {fails} |")
 

@@ -22,19 +22,22 @@ Per photo: `qrpose estimate --image PHOTO --fx-px F --fy-px F --cx-px (w-1)/2 --
 --marker-size-mm 50 [--qrpose-flag ...]` with F = max(w, h) (intrinsics only matter for the
 pose); time = its `timing_ms.decode + timing_ms.detect`. A non-zero exit, a timeout
 (--timeout, 60 s) or unreadable output counts as nothing read and is listed. zxing-cpp:
-Pillow decode to 8-bit grey + `read_barcodes(formats=QRCode)`, timed together (median of
---repeat runs). EXIF orientation is applied on neither side (qrpose ignores it; the labels are
+OpenCV's decode to 8-bit grey (`cv2.imdecode(..., cv2.IMREAD_GRAYSCALE)`, libjpeg-turbo) +
+`read_barcodes(formats=QRCode)`, timed together (median of --repeat runs), run right after
+qrpose on the same bytes (alternated photo by photo); Pillow's decode (RGB + convert('L')) is
+timed too and reported as a second ratio. EXIF orientation is applied on neither side (qrpose ignores it; the labels are
 in the stored pixel grid). See scripts/photo_common.py for the shared conventions.
 
 Output: a Markdown table per category (photos, codes, read % of each reader, median and p95
-time of each, photos where qrpose took > 1 s, qrpose failures) with an overall row (read %
-over all codes, times over all photos), then codes read by one reader only, decoded
-quadrilaterals that match no label, and failures. --json OUT.json: per-image details.
+time of each, the photo-by-photo time ratio qrpose / zxing-cpp, median and p90, with OpenCV's
+decode and with Pillow's, photos where qrpose took > 150 ms, qrpose failures) with an overall
+row (read % over all codes, times over all photos), then codes read by one reader only,
+decoded quadrilaterals that match no label, and failures. --json OUT.json: per-image details.
 Options: --only CATEGORY..., --limit N (first N photos of each category, manifest order),
 --no-zxing, --zxing-decode convert|draft, --repeat N (zxing-cpp runs per photo, median),
 --qrpose-repeat N (qrpose processes per photo, median time), --timeout S.
 
-Runs in target/photo-venv (zxing-cpp, numpy, Pillow; created on first use). The machine's
+Runs in target/photo-venv (zxing-cpp, numpy, Pillow, OpenCV; created on first use). The machine's
 load shows in the times: run it on an idle machine, or compare runs made side by side.
 """
 import argparse, json, sys, time
@@ -88,6 +91,9 @@ def bench_image(root, entry, args, flags):
     return rec, by_text
 
 
+SLOW_MS = 150.0
+
+
 def summarise(records):
     codes = sum(r["codes"] for r in records)
     out = {"photos": len(records), "codes": codes}
@@ -101,10 +107,18 @@ def summarise(records):
         out[name] = {"read": read, "read_pct": 100 * read / codes if codes else float("nan"),
                      "median_ms": pc.median(ms), "p95_ms": pc.pct(ms, 0.95),
                      "max_ms": max((m for m in ms if m is not None), default=float("nan")),
-                     "over_1s": sum(1 for m in ms if m is not None and m > 1000),
+                     "over_150ms": sum(1 for m in ms if m is not None and m > SLOW_MS),
                      "failures": sum(1 for x in rs if not x["ok"]),
                      "unmatched_decoded": sum(x["unmatched_decoded"] for x in rs)}
+    for dec in ("opencv", "pillow"):
+        out[f"ratio_{dec}"] = pc.ratio_stats(
+            [(r["qrpose"]["ms"], r["zxing"].get(f"ms_{dec}")) for r in records
+             if r.get("zxing") and r["zxing"]["ok"] and r["qrpose"]["ok"]])
     return out
+
+
+def ratio_cell(x):
+    return "–" if x is None else f"{x['median']:.2f} / {x['p90']:.2f}"
 
 
 def row(name, s):
@@ -118,7 +132,8 @@ def row(name, s):
     q = s["qrpose"]
     return (f"| {name} | {s['photos']} | {s['codes']} | {read('qrpose')} | {read('zxing')} | "
             f"{t('qrpose', 'median_ms')} | {t('qrpose', 'p95_ms')} | {t('zxing', 'median_ms')} | "
-            f"{t('zxing', 'p95_ms')} | {q['over_1s']} | {q['failures']} |")
+            f"{t('zxing', 'p95_ms')} | {ratio_cell(s.get('ratio_opencv'))} | "
+            f"{ratio_cell(s.get('ratio_pillow'))} | {q['over_150ms']} | {q['failures']} |")
 
 
 def main():
@@ -164,7 +179,7 @@ def main():
 
     print(f"qrpose: `{env['qrpose_bin']}` (built {env['qrpose_bin_mtime']}, tree {env['git_head']}), "
           f"flags: `{' '.join(flags) or '(none)'}`; zxing-cpp {env['zxing_cpp']} (PyPI), Pillow "
-          f"{env['pillow']}, decode `{args.zxing_decode}`, runs per image: qrpose {args.qrpose_repeat}, zxing-cpp {args.repeat} (median); "
+          f"{env['pillow']}, OpenCV {env['opencv']}, primary decode `{args.zxing_decode}`, runs per image: qrpose {args.qrpose_repeat}, zxing-cpp {args.repeat} (median); "
           f"EXIF orientation {env['exif_orientation']}.")
     print(f"Read = decoded quadrilateral with IoU >= 0.5 to a label" if not by_text_any else
           "Read = expected payload decoded (this manifest has no corner labels)", end="")
@@ -172,8 +187,9 @@ def main():
           f"Load average {env['loadavg_start'][0]:.1f} -> {env['loadavg_end'][0]:.1f} on "
           f"{env['cpus']} CPUs; {env['elapsed_s']} s.\n")
     print("| category | photos | codes | qrpose read % (n) | zxing-cpp read % (n) | qrpose median ms | "
-          "qrpose p95 ms | zxing-cpp median ms | zxing-cpp p95 ms | qrpose > 1 s | qrpose failures |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "qrpose p95 ms | zxing-cpp median ms | zxing-cpp p95 ms | ratio, OpenCV decode (median / p90) | "
+          "ratio, Pillow decode (median / p90) | qrpose > 150 ms | qrpose failures |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for g, s in per_group.items():
         print(row(g, s))
     print(row("**all**", overall))
@@ -183,15 +199,12 @@ def main():
         only_z = sum(len(set(r["zxing"]["read"]) - set(r["qrpose"]["read"])) for r in records)
         both = sum(len(set(r["zxing"]["read"]) & set(r["qrpose"]["read"])) for r in records)
         print(f"\nCodes read by both: {both}; by qrpose only: {only_q}; by zxing-cpp only: {only_z}.")
-        pairs = [(r["qrpose"]["ms"], r["zxing"]["ms"]) for r in records
-                 if r["qrpose"]["ms"] and r["zxing"]["ms"]]
-        if pairs:
-            ratios = [q / z for q, z in pairs]
-            print("Time, qrpose / zxing-cpp: ratio of the medians "
-                  f"{pc.median([q for q, _ in pairs]) / pc.median([z for _, z in pairs]):.2f}; "
-                  f"median of the per-photo ratios {pc.median(ratios):.2f} "
-                  f"(p95 {pc.pct(ratios, 0.95):.2f}); ratio of the totals "
-                  f"{sum(q for q, _ in pairs) / sum(z for _, z in pairs):.2f}.")
+        for dec, label in (("opencv", "OpenCV"), ("pillow", "Pillow")):
+            x = overall.get(f"ratio_{dec}")
+            if x:
+                print(f"Time, qrpose / zxing-cpp with {label}'s decode: ratio of the medians "
+                      f"{x['of_medians']:.2f}; photo by photo median {x['median']:.2f}, p90 "
+                      f"{x['p90']:.2f}, p95 {x['p95']:.2f}; ratio of the totals {x['of_totals']:.2f}.")
     print(("Decoded payloads matching no expected text (text-mode or encoding differences, or a "
            "misread): " if by_text_any else
            "Decoded quadrilaterals matching no label (unlabelled codes, or corners off by IoU < 0.5): ")
@@ -199,9 +212,9 @@ def main():
           + ("" if args.no_zxing else f", zxing-cpp {overall['zxing']['unmatched_decoded']}") + ".")
     print(f"Detections without a payload (not counted): qrpose "
           f"{sum(r['qrpose']['undecoded'] for r in records)}.")
-    slow = sorted((r for r in records if r["qrpose"]["ms"] and r["qrpose"]["ms"] > 1000),
+    slow = sorted((r for r in records if r["qrpose"]["ms"] and r["qrpose"]["ms"] > SLOW_MS),
                   key=lambda r: -r["qrpose"]["ms"])
-    print(f"qrpose > 1 s: {len(slow)} of {len(records)} photos"
+    print(f"qrpose > {SLOW_MS:g} ms: {len(slow)} of {len(records)} photos"
           + (": " + ", ".join(f"{r['path']} ({r['qrpose']['ms']:.0f} ms)" for r in slow[:15])
              + (" …" if len(slow) > 15 else "") if slow else "") + ".")
     fails = [r for r in records if not r["qrpose"]["ok"]]

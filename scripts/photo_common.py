@@ -11,17 +11,21 @@ Conventions (the same on both sides, so that both readers see the same pixels):
   boofcv-dev labels are in the stored (un-rotated) pixel grid too: the four `lots/` photos
   tagged Orientation=6 have labels that only fit the raw 4032x3024 grid.
 * qrpose time = the binary's own `timing_ms.decode + timing_ms.detect` (process start-up,
-  file reading, pose and JSON are not counted). zxing-cpp time = `time.perf_counter()` around
-  Pillow decode to 8-bit grey + `zxingcpp.read_barcodes(..., formats=QRCode)` with the
-  library's default options (rotate, invert, downscale), as scripts/speed_zxing_pypi.py;
-  the file's bytes are read into memory before the clock starts, on both sides.
-  `--zxing-decode draft` makes Pillow decode JPEG luma directly (libjpeg-turbo grayscale
-  output, like qrpose's zune-jpeg luma path and like OpenCV's IMREAD_GRAYSCALE in
-  speed_zxing_pypi.py) instead of RGB + convert('L').
+  file reading, pose and JSON are not counted); its passes (`timing_ms.detect_passes`) are
+  kept in the JSON details. zxing-cpp time = `time.perf_counter()` around a decode to 8-bit
+  grey + `zxingcpp.read_barcodes(..., formats=QRCode)` with the library's default options
+  (try harder, rotate, invert, downscale), as scripts/speed_zxing_pypi.py; the file's bytes
+  are read into memory before the clock starts, on both sides. The decode is OpenCV's
+  `cv2.imdecode(..., cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION)` (libjpeg-turbo,
+  luma straight from the JPEG: what an integrator would run; without the second flag OpenCV
+  would turn EXIF-tagged photos, which qrpose does not). Pillow's decode (RGB, then convert('L'), or with
+  `--zxing-decode draft` JPEG luma directly) is timed too, on the same bytes, and its time
+  plus the same `read_barcodes` time is reported as the Pillow figure (`ms_pillow`);
+  `--zxing-decode convert|draft` makes Pillow's the primary figure instead.
 * Percentiles are nearest-rank, `sorted(v)[round((n - 1) * q)]`, as scripts/accuracy_images.py.
 
-The venv is target/photo-venv (zxing-cpp, numpy, Pillow from PyPI), created on first use; the
-scripts re-execute themselves inside it.
+The venv is target/photo-venv (zxing-cpp, numpy, Pillow, opencv-python-headless from PyPI),
+created on first use; the scripts re-execute themselves inside it.
 """
 import io, json, os, shlex, statistics, subprocess, sys, time, venv
 from pathlib import Path
@@ -29,7 +33,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 VENV = ROOT / "target" / "photo-venv"
 DEFAULT_BIN = ROOT / "target" / "release" / "qrpose"
-PACKAGES = ["zxing-cpp", "numpy", "Pillow"]
+PACKAGES = ["zxing-cpp", "numpy", "Pillow", "opencv-python-headless"]
 
 
 def ensure_venv():
@@ -39,7 +43,7 @@ def ensure_venv():
         venv.create(VENV, with_pip=True)
     if Path(sys.prefix).resolve() == VENV.resolve() or os.environ.get("QRPOSE_PHOTO_VENV") == "1":
         return
-    probe = subprocess.run([str(py), "-c", "import zxingcpp, numpy, PIL"], capture_output=True)
+    probe = subprocess.run([str(py), "-c", "import zxingcpp, numpy, PIL, cv2"], capture_output=True)
     if probe.returncode != 0:
         subprocess.check_call([str(py), "-m", "pip", "install", "-q"] + PACKAGES)
     os.environ["QRPOSE_PHOTO_VENV"] = "1"
@@ -60,9 +64,10 @@ def add_common_args(ap):
     ap.add_argument("--qrpose-repeat", type=int, default=1,
                     help="qrpose runs (processes) per image; its time is their median, its "
                          "markers those of the first run (default 1)")
-    ap.add_argument("--zxing-decode", choices=["convert", "draft"], default="convert",
-                    help="Pillow decode for zxing-cpp: RGB then convert('L') (default), or "
-                         "JPEG luma directly via Image.draft('L')")
+    ap.add_argument("--zxing-decode", choices=["opencv", "convert", "draft"], default="opencv",
+                    help="decode timed for zxing-cpp's primary figure: OpenCV's IMREAD_GRAYSCALE "
+                         "(default), Pillow's RGB then convert('L'), or Pillow's JPEG luma via "
+                         "Image.draft('L'); the other of OpenCV / Pillow is reported beside it")
     ap.add_argument("--no-zxing", action="store_true", help="run qrpose only")
     ap.add_argument("--json", metavar="OUT.json", help="write per-image details here")
 
@@ -145,6 +150,8 @@ def _run_qrpose_once(binary, image_path, width, height, flags, timeout, intrinsi
         out["ms"] = out["decode_ms"] + out["detect_ms"]
         out["size"] = [resp["image"]["width_px"], resp["image"]["height_px"]]
         out["warnings"] = list(resp.get("warnings") or [])
+        out["passes"] = [[p.get("pass"), p.get("ms"), p.get("decoded")]
+                         for p in timing.get("detect_passes") or []]
         for m in resp.get("markers") or []:
             out["markers"].append({"payload": m.get("payload"),
                                    "corners": [[float(u), float(v)] for u, v in m["corners_px"]]})
@@ -155,25 +162,49 @@ def _run_qrpose_once(binary, image_path, width, height, flags, timeout, intrinsi
     return out
 
 
-def run_zxing(data, repeat=1, mode="convert"):
-    """zxing-cpp on encoded bytes: Pillow decode to grey + read_barcodes, timed together.
-    Returns a dict: ok, error, ms (median over `repeat`), runs_ms, results [{payload, corners}]."""
-    import zxingcpp
+def _decode_opencv(data):
+    import cv2, numpy as np
+    # IMREAD_IGNORE_ORIENTATION: OpenCV would otherwise turn the photo by its EXIF tag, which
+    # qrpose does not (and the labels are in the stored grid); turning costs time too.
+    return cv2.imdecode(np.frombuffer(data, dtype=np.uint8),
+                        cv2.IMREAD_GRAYSCALE | cv2.IMREAD_IGNORE_ORIENTATION)
+
+
+def _decode_pillow(data, mode):
     from PIL import Image
-    runs, results, error = [], [], None
+    im = Image.open(io.BytesIO(data))
+    if mode == "draft":
+        im.draft("L", im.size)
+    return im.convert("L")
+
+
+def run_zxing(data, repeat=1, mode="opencv"):
+    """zxing-cpp on encoded bytes: a decode to grey + read_barcodes, timed together, with
+    OpenCV's decode (mode "opencv") or Pillow's ("convert", "draft") as the primary figure
+    `ms`; the other decoder is timed on the same bytes too and `ms_pillow` / `ms_opencv` is
+    its decode time plus the same read time. Returns a dict: ok, error, ms (median over
+    `repeat`), ms_opencv, ms_pillow, decode_ms, read_ms, runs_ms, results [{payload, corners}]."""
+    import zxingcpp
+    pillow_mode = "convert" if mode == "opencv" else mode
+    runs, reads, cv_dec, pil_dec, results, error = [], [], [], [], [], None
     for _ in range(max(1, repeat)):
         try:
             t0 = time.perf_counter()
-            im = Image.open(io.BytesIO(data))
-            if mode == "draft":
-                im.draft("L", im.size)
-            gray = im.convert("L")
-            found = zxingcpp.read_barcodes(gray, formats=zxingcpp.BarcodeFormat.QRCode)
+            gray = _decode_opencv(data)
             t1 = time.perf_counter()
+            if gray is None:
+                raise ValueError("OpenCV cannot decode the bytes")
+            found = zxingcpp.read_barcodes(gray, formats=zxingcpp.BarcodeFormat.QRCode)
+            t2 = time.perf_counter()
+            _decode_pillow(data, pillow_mode)
+            t3 = time.perf_counter()
         except Exception as e:  # a reader crash on one image counts as nothing read
             return {"ok": False, "error": f"{type(e).__name__}: {e}", "ms": None,
-                    "runs_ms": runs, "results": []}
-        runs.append(1e3 * (t1 - t0))
+                    "ms_opencv": None, "ms_pillow": None, "runs_ms": runs, "results": []}
+        cv_dec.append(1e3 * (t1 - t0))
+        reads.append(1e3 * (t2 - t1))
+        pil_dec.append(1e3 * (t3 - t2))
+        runs.append(1e3 * (t2 - t0) if mode == "opencv" else 1e3 * (t3 - t1))
         results = []
         for b in found:
             p = b.position
@@ -183,8 +214,13 @@ def run_zxing(data, repeat=1, mode="convert"):
                             "corners": [[p.top_left.x, p.top_left.y], [p.top_right.x, p.top_right.y],
                                         [p.bottom_right.x, p.bottom_right.y],
                                         [p.bottom_left.x, p.bottom_left.y]]})
-    return {"ok": True, "error": error, "ms": statistics.median(runs), "runs_ms": runs,
-            "results": results}
+    read = statistics.median(reads)
+    ms_opencv = statistics.median(cv_dec) + read
+    ms_pillow = statistics.median(pil_dec) + read
+    return {"ok": True, "error": error, "ms": ms_opencv if mode == "opencv" else ms_pillow,
+            "ms_opencv": ms_opencv, "ms_pillow": ms_pillow, "read_ms": read,
+            "decode_ms": statistics.median(cv_dec), "pillow_decode_ms": statistics.median(pil_dec),
+            "pillow_decode": pillow_mode, "runs_ms": runs, "results": results}
 
 
 def warm_up_zxing():
@@ -192,6 +228,10 @@ def warm_up_zxing():
     import zxingcpp
     from PIL import Image
     zxingcpp.read_barcodes(Image.new("L", (64, 64), 255), formats=zxingcpp.BarcodeFormat.QRCode)
+    buf = io.BytesIO()
+    Image.new("L", (64, 64), 255).save(buf, "JPEG")
+    _decode_opencv(buf.getvalue())
+    _decode_pillow(buf.getvalue(), "convert")
 
 
 # --- geometry -------------------------------------------------------------------------------
@@ -315,9 +355,22 @@ def fmt_ms(x):
     return f"{x:.0f}" if x >= 100 else f"{x:.1f}"
 
 
+def ratio_stats(pairs):
+    """Ratios of paired times [(ours, theirs)]: of the medians, the median and p90 / p95 of
+    the per-item ratios, of the totals; None without pairs."""
+    pairs = [(q, z) for q, z in pairs if q and z]
+    if not pairs:
+        return None
+    ratios = [q / z for q, z in pairs]
+    return {"n": len(pairs),
+            "of_medians": median([q for q, _ in pairs]) / median([z for _, z in pairs]),
+            "median": median(ratios), "p90": pct(ratios, 0.90), "p95": pct(ratios, 0.95),
+            "of_totals": sum(q for q, _ in pairs) / sum(z for _, z in pairs)}
+
+
 def environment(args, binary):
     """What a reader of the numbers needs to rerun them."""
-    import PIL, zxingcpp
+    import PIL, zxingcpp, cv2
     try:
         from importlib.metadata import version
         zx = version("zxing-cpp")
@@ -340,6 +393,7 @@ def environment(args, binary):
         "git_head": git + (" (working tree modified)" if dirty else ""),
         "zxing_cpp": zx,
         "pillow": PIL.__version__,
+        "opencv": cv2.__version__,
         "zxing_decode": args.zxing_decode,
         "repeat": args.repeat,
         "qrpose_repeat": args.qrpose_repeat,

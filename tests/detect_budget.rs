@@ -110,14 +110,12 @@ fn a_frame_without_a_code_costs_only_the_whole_frame_reads() {
             .iter()
             .map(|p| p.name.as_str())
             .collect();
+        // `balanced`: the whole-frame reads saw no symbol, triple or finder pattern, and no
+        // tile of this smooth texture has the detail that gets a sharpened tile probe, so
+        // nothing more runs (no whole-frame sharpened read: the evidence gate, issue 27).
         let expected: &[&str] = match effort {
             Effort::Fast => &["rxing full"],
-            _ => &[
-                "rxing full",
-                "rxing half",
-                "rxing half global-histogram",
-                "rxing sharpened",
-            ],
+            _ => &["rxing full", "rxing half", "rxing half global-histogram"],
         };
         if cfg!(feature = "zxing-cpp") {
             assert_eq!(names.first(), Some(&"zxing-cpp full"), "{names:?}");

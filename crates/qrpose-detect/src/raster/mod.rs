@@ -7,10 +7,10 @@
 //! Pixel (u, v) covers [u − 0.5, u + 0.5] × [v − 0.5, v + 0.5], so pixel centres lie at
 //! integer coordinates (docs/conventions.md).
 
+mod blur;
 mod filters;
 mod gray;
 
-pub use filters::{
-    downscale_half, gaussian_blur_plane, invert, sharpen, stretch_contrast, upscale_double,
-};
+pub use blur::{gaussian_blur_plane, sharpen};
+pub use filters::{downscale_half, invert, stretch_contrast, upscale_double};
 pub use gray::GrayImage;

@@ -12,6 +12,7 @@
 
 use crate::Candidate;
 use crate::raster::GrayImage;
+use crate::search::pairs::FinderPattern;
 use qrpose_core::geometry::frames::PixelPoint;
 
 /// An axis-aligned box of the image where a symbol may be, px.
@@ -25,6 +26,8 @@ pub(crate) struct Region {
     pub(crate) hi_u: f64,
     /// Bottom edge, px.
     pub(crate) hi_v: f64,
+    /// Width of the finder patterns that made it (7 modules), px; 0 when unknown.
+    pub(crate) finder_px: f64,
 }
 
 /// At most this many unread regions get further effort in one image: clutter can produce
@@ -42,7 +45,7 @@ impl Region {
         finder_px: f64,
     ) -> Option<Self> {
         let br = PixelPoint::new(tr.u() + bl.u() - tl.u(), tr.v() + bl.v() - tl.v());
-        Self::around(&[tl, tr, br, bl], finder_px)
+        Self::around(&[tl, tr, br, bl], finder_px).map(|r| Self { finder_px, ..r })
     }
 
     /// The bounding box of `points` widened by `margin_px` on every side.
@@ -53,6 +56,7 @@ impl Region {
             lo_v: f64::INFINITY,
             hi_u: f64::NEG_INFINITY,
             hi_v: f64::NEG_INFINITY,
+            finder_px: 0.0,
         };
         for p in points {
             r.lo_u = r.lo_u.min(p.u() - margin_px);
@@ -76,6 +80,7 @@ impl Region {
             lo_v: s(self.lo_v),
             hi_u: s(self.hi_u),
             hi_v: s(self.hi_v),
+            finder_px: self.finder_px * scale,
         }
     }
 
@@ -192,6 +197,28 @@ impl Crop {
         PixelPoint::new(p.u() - self.x0 as f64, p.v() - self.y0 as f64)
     }
 
+    /// A region found in the crop, in source pixels.
+    #[must_use]
+    pub(crate) fn region_to_source(&self, r: Region) -> Region {
+        let (dx, dy) = (self.x0 as f64, self.y0 as f64);
+        Region {
+            lo_u: r.lo_u + dx,
+            lo_v: r.lo_v + dy,
+            hi_u: r.hi_u + dx,
+            hi_v: r.hi_v + dy,
+            ..r
+        }
+    }
+
+    /// A finder pattern found in the crop, in source pixels.
+    #[must_use]
+    pub(crate) fn pattern_to_source(&self, p: FinderPattern) -> FinderPattern {
+        FinderPattern {
+            centre: PixelPoint::new(p.centre.u() + self.x0 as f64, p.centre.v() + self.y0 as f64),
+            ..p
+        }
+    }
+
     /// A candidate found in the crop, in source pixels.
     #[must_use]
     pub(crate) fn to_source(&self, mut c: Candidate) -> Candidate {
@@ -241,6 +268,7 @@ mod tests {
             lo_v: lo,
             hi_u: hi,
             hi_v: hi,
+            finder_px: 0.0,
         };
         let regions = vec![
             region(0.0, 100.0),   // on the read symbol
@@ -262,6 +290,7 @@ mod tests {
                     lo_v: 0.0,
                     hi_u: lo + 50.0,
                     hi_v: 50.0,
+                    finder_px: 0.0,
                 }
             })
             .collect();
@@ -278,6 +307,7 @@ mod tests {
                 lo_v: 40.0,
                 hi_u: 90.0,
                 hi_v: 60.0,
+                finder_px: 0.0,
             },
         )
         .expect("inside");

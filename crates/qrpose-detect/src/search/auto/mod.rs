@@ -6,10 +6,18 @@
 //!    but merged in only after every other pass, which then runs as in the default build:
 //!    that build reads all the default build reads, and more). Every
 //!    symbol is kept, however many (a shelf shows dozens), and every finder-pattern triple
-//!    that did not read becomes a [`Region`].
+//!    that did not read becomes a [`Region`]. At `balanced`, a full-resolution read that
+//!    decoded codes and left no finder pattern or triple unexplained ends step 1.
 //!
-//!    When step 1 found nothing at all (no symbol, no triple), or when steps 1 and 2 read
-//!    two codes or more, one of at most
+//!    **Evidence** ([`Evidence`], `balanced`): on a frame of more than
+//!    [`WHOLE_FRAME_MAX_PIXELS`], what step 1 saw decides what follows. A frame where it saw
+//!    no symbol, no triple and no finder pattern gets none of the passes below, only the
+//!    sharpened reads of the crops around its busiest tiles ([`find_sharpened_tiles`]), and
+//!    stops. A smaller frame costs what a crop does and gets them, evidence or not.
+//!
+//!    When step 1 located nothing (no symbol, no triple; at `balanced`, on a frame of more
+//!    than [`WHOLE_FRAME_MAX_PIXELS`], with a finder pattern seen), or when steps 1 and 2
+//!    read two codes or more, one of at most
 //!    [`sharpened::SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module, `balanced` and
 //!    `thorough` read an unsharp-masked copy of frames up to [`UPSCALE_MAX_SIDE_PX`] once
 //!    more ([`find_sharpened`], after step 2): small codes under blur lose their finder
@@ -21,12 +29,15 @@
 //!    ([`sharpened::find_lone`]). Symbols those crop reads locate but cannot decode are
 //!    read again through their module grid ([`crate::search::reread()`]) and dropped if that fails.
 //! 2. **Look closer** (`balanced`, `thorough`): only where a region is, never on the whole
-//!    frame: a crop around it goes through the other binariser, rqrr, and the image
-//!    variants of [`crate::raster`] (global histogram, denoised, contrast-stretched,
-//!    inverted, sharpened, double scale) until it reads. A frame with nothing finder-like
-//!    costs the reads of step 1 and the sharpened read, nothing more.
-//! 3. **Everything** (`thorough`): every backend and every variant on the whole frame, as
-//!    long as the deadline allows (rqrr on frames of at most [`RQRR_WHOLE_FRAME_MAX_PIXELS`]).
+//!    frame: a crop around it (halved while its finder patterns are
+//!    [`REGION_HALVE_FINDER_PX`] or wider) goes through the other binariser, rqrr, and the
+//!    image variants of [`crate::raster`] (global histogram, denoised, contrast-stretched,
+//!    sharpened, double scale) until it reads. A frame with nothing code-like costs the
+//!    reads of step 1 and the tile probes, nothing more.
+//! 3. **Everything** (`thorough`, and `balanced` on a frame of at most
+//!    [`WHOLE_FRAME_MAX_PIXELS`] where nothing was read): every backend and every variant on
+//!    the whole frame, as long as the deadline allows (rqrr on frames of at most
+//!    [`RQRR_WHOLE_FRAME_MAX_PIXELS`]).
 //!
 //! Before every pass after the first the deadline is checked ([`PassLog`]); symbols found on
 //! the way are re-read through their module grid and merged ([`crate::search::merge_candidates`]).
@@ -48,11 +59,12 @@ use crate::search::pairs::FinderPattern;
 use crate::search::region::{Crop, Region, unread_regions};
 use crate::{Backend, Candidate, Detector};
 use qrpose_core::geometry::frames::PixelPoint;
+use std::borrow::Cow;
 
 pub(in crate::search) mod passes;
 mod sharpened;
 use passes::{decoded, look_closer, read_crop, rescale, variants};
-use sharpened::{find_lone, find_sharpened, reads_small_codes};
+use sharpened::{find_lone, find_sharpened, find_sharpened_tiles, reads_small_codes};
 
 /// Images up to this many px on their longer side get a double-scale second pass (the last
 /// one: four times the pixels). Codes of 2-3 px per module under heavy blur, which every
@@ -117,11 +129,16 @@ fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &mut PassLog)
         |r: &(Vec<Candidate>, Vec<Region>, _)| decoded(&r.0),
         || rxing::RxingDetector::hybrid().detect_with_patterns(image),
     );
+    // A read that decoded codes and left no finder pattern or triple unexplained has seen
+    // everything the frame shows at full resolution: `balanced` takes that as the frame's
+    // whole evidence and skips the reduced levels (`thorough` reads them anyway).
+    let explained = decoded(&read) > 0 && regions.is_empty() && patterns.is_empty();
     finds.add(read);
     finds.regions.extend(regions);
     finds.patterns = patterns;
     let large = image.width().min(image.height()) >= HALF_SCALE_FIRST_MIN_SIDE_PX;
-    if effort == Effort::Fast || !large || !log.may_continue() {
+    let seen_all = explained && effort == Effort::Balanced;
+    if effort == Effort::Fast || !large || seen_all || !log.may_continue() {
         return;
     }
     let Some(half) = downscale_half(image) else {
@@ -180,10 +197,12 @@ pub(crate) const SMALL_LEVEL_MAX_SIDE_PX: usize = 800;
 /// long there, px (screens photographed close: moiré at half scale).
 pub(crate) const SMALL_LEVEL_MIN_SIDE_PX: usize = 300;
 
-/// Images of at most this many pixels in which nothing was read get step 3 (every backend
-/// and variant on the whole frame) at `balanced` too: on a small frame it costs what a crop
-/// does, and small, low-resolution photos are where the variants read what the first reads
-/// miss.
+/// Images of at most this many pixels are read by `balanced` as one crop: every pass runs
+/// on them whatever step 1 saw (no [`Evidence`] gate), and where nothing was read they get
+/// step 3 (every backend and variant on the whole frame) too. On a small frame that costs
+/// what a crop does, and small, low-resolution photos are where the variants read what the
+/// first reads miss (light-on-dark codes, which show step 1 no finder pattern, among them:
+/// docs/measurements/detection.md, 2026-11-28).
 pub(crate) const WHOLE_FRAME_MAX_PIXELS: usize = 400_000;
 
 /// One read of a downscaled copy (`scale` source px per copy px). Whole-pixel corners at
@@ -207,44 +226,136 @@ fn read_level(
         if finds.found.iter().any(|f| same_symbol(f, &rough)) {
             continue;
         }
-        let precise = Crop::around(image, &rough.corners_px).map(|crop| {
-            let read = crop
-                .image
-                .as_ref()
-                .map(|c| rxing::RxingDetector::hybrid().detect(c))
-                .unwrap_or_default();
-            read.into_iter()
-                .filter(|c| c.payload.is_some())
-                .map(|c| crop.to_source(c))
-                .collect::<Vec<_>>()
-        });
-        match precise {
-            Some(p) if !p.is_empty() => finds.add(p),
-            _ => finds.add(vec![rough]),
-        }
+        let precise = precise(image, rough);
+        finds.add(precise);
     }
     finds
         .regions
         .extend(regions.into_iter().map(|r| r.rescaled(scale)));
 }
 
+/// A symbol read on a reduced copy (corners whole pixels of that copy), read again on a
+/// full-resolution crop around it for whole-pixel corners at full resolution; the rough
+/// symbol itself when that read decodes nothing.
+fn precise(image: &GrayImage, rough: Candidate) -> Vec<Candidate> {
+    let precise = Crop::around(image, &rough.corners_px).map(|crop| {
+        let read = crop
+            .image
+            .as_ref()
+            .map(|c| rxing::RxingDetector::hybrid().detect(c))
+            .unwrap_or_default();
+        read.into_iter()
+            .filter(|c| c.payload.is_some())
+            .map(|c| crop.to_source(c))
+            .collect::<Vec<_>>()
+    });
+    match precise {
+        Some(p) if !p.is_empty() => p,
+        _ => vec![rough],
+    }
+}
+
+/// A region's crop whose finder patterns are this wide or wider (16 px per module) is
+/// halved before step 2 reads it, until they are narrower: every pass over a large code's
+/// crop (a triple of the small level of a 12 MP photo makes crops of millions of pixels)
+/// then costs a quarter or less, and 8-16 px per module still read.
+pub(crate) const REGION_HALVE_FINDER_PX: f64 = 112.0;
+/// How many times a region's crop is halved before step 2 reads it (a power of two; 1 for a
+/// region whose finder size is unknown).
+fn region_reduction(finder_px: f64) -> usize {
+    let mut reduction = 1;
+    while finder_px / reduction as f64 >= REGION_HALVE_FINDER_PX && reduction < 64 {
+        reduction *= 2;
+    }
+    reduction
+}
+
+/// What the whole-frame reads of step 1 saw of codes: the evidence that decides whether
+/// `balanced` looks any further.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct Evidence {
+    /// Symbols decoded (or found undecoded) so far by the default build's reads (a zxing-cpp
+    /// build's own read is set aside: its other passes run as the default build's do).
+    pub(crate) symbols: usize,
+    /// Finder-pattern triples that did not read, at any level (the regions of step 2).
+    pub(crate) triples: usize,
+    /// Finder patterns of the full-resolution read that no decoded symbol used.
+    pub(crate) patterns: usize,
+}
+
+impl Evidence {
+    fn of(finds: &Finds<'_>) -> Self {
+        Self {
+            symbols: finds.found.len(),
+            triples: finds.regions.len(),
+            patterns: finds.patterns.len(),
+        }
+    }
+
+    /// Whether anything code-like was seen: a symbol, a triple or a lone finder pattern.
+    /// Most frames without a code show none of them (docs/measurements/detection.md,
+    /// 2026-11-28).
+    pub(crate) fn any(self) -> bool {
+        self.symbols + self.triples + self.patterns > 0
+    }
+
+    /// Nothing located: no symbol and no triple (the sharpened read's first trigger, with
+    /// finder patterns seen).
+    fn unlocated(self) -> bool {
+        self.symbols == 0 && self.triples == 0
+    }
+}
+
 /// Step 2: more passes on each unread region's crop, until it reads or the deadline comes.
+/// The crop of a region of large finder patterns is read halved ([`region_reduction`]);
+/// what it decodes there is read again at full resolution ([`precise`]).
 fn regions(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
+    let image = finds.image;
     let regions = unread_regions(std::mem::take(&mut finds.regions), &finds.found);
     for (k, region) in regions.iter().enumerate() {
-        let Some(crop) = Crop::of_region(finds.image, region) else {
+        let Some(crop) = Crop::of_region(image, region) else {
             continue;
         };
-        let Some(pixels) = crop.image.as_ref() else {
+        let Some(full) = crop.image.as_ref() else {
             continue;
         };
-        for pass in look_closer(pixels, best) {
+        let (mut pixels, mut reduction) = (Cow::Borrowed(full), 1.0);
+        for _ in 0..region_reduction(region.finder_px).ilog2() {
+            let Some(half) = downscale_half(&pixels) else {
+                break;
+            };
+            (pixels, reduction) = (Cow::Owned(half), 2.0 * reduction);
+        }
+        // Not the negative: a light-on-dark code shows no finder pattern to the reads that
+        // make regions, so a region's negative holds one only by chance (it read no code of
+        // the benchmark sets: docs/measurements/detection.md, 2026-11-28).
+        let passes = look_closer(&pixels, best);
+        for pass in passes.into_iter().filter(|p| p.name != "inverted") {
             let Some(read) = pass.run(&format!("region {k} "), log, |d, variant, scale| {
-                read_crop(&crop, d, variant, scale)
+                let read = read_crop(&crop, d, variant, scale * reduction);
+                if reduction > 1.0 {
+                    read.into_iter()
+                        .flat_map(|c| match c.payload {
+                            Some(_) => precise(image, c),
+                            None => vec![c],
+                        })
+                        .collect()
+                } else {
+                    read
+                }
             }) else {
                 return;
             };
-            let done = any_decoded(&read);
+            // Done when the crop read a code not read before: a region that also covers a
+            // code already read (a triple of two neighbouring codes' finder patterns) is
+            // not explained by reading that code again.
+            let done = read.iter().any(|c| {
+                c.payload.is_some()
+                    && !finds
+                        .found
+                        .iter()
+                        .any(|f| f.payload.is_some() && same_symbol(f, c))
+            });
             finds.add(read);
             if done {
                 break;
@@ -319,16 +430,29 @@ pub(crate) fn find_candidates(
         aside: Vec::new(),
     };
     find(&mut finds, effort, best, log);
-    if effort != Effort::Fast {
-        let nothing = finds.found.is_empty() && finds.regions.is_empty();
+    let evidence = Evidence::of(&finds);
+    // A frame of at most WHOLE_FRAME_MAX_PIXELS costs what a crop does: `balanced` reads
+    // it as one, evidence or not. A larger frame whose whole-frame reads saw no sign of a
+    // code gets nothing more from `balanced` but the tile probes; `thorough` looks
+    // everywhere.
+    let small_frame = image.pixels().len() <= WHOLE_FRAME_MAX_PIXELS;
+    let everywhere = effort == Effort::Thorough || (effort == Effort::Balanced && small_frame);
+    let looks_on = everywhere || (effort == Effort::Balanced && evidence.any());
+    if looks_on {
         regions(&mut finds, best, log);
-        if nothing || reads_small_codes(&finds.found) {
+        // Nothing located: the sharpened read is for small blurred codes whose finder
+        // patterns lost their light ring, so on a large frame `balanced` wants one
+        // pattern seen at least.
+        let unlocated = evidence.unlocated() && (everywhere || evidence.patterns > 0);
+        if unlocated || reads_small_codes(&finds.found) {
             find_sharpened(&mut finds, log);
         }
         find_lone(&mut finds, log);
+    } else if effort == Effort::Balanced {
+        find_sharpened_tiles(&mut finds, log);
     }
-    let small_frame = image.pixels().len() <= WHOLE_FRAME_MAX_PIXELS && !any_decoded(&finds.found);
-    if effort == Effort::Thorough || (effort == Effort::Balanced && small_frame) {
+    let unread_small_frame = small_frame && !any_decoded(&finds.found);
+    if effort == Effort::Thorough || (effort == Effort::Balanced && unread_small_frame) {
         everything(&mut finds, best, log);
     }
     // zxing-cpp's symbols first, as its read came first: where both backends found a

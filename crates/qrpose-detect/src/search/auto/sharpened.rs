@@ -21,11 +21,14 @@ use crate::search::pairs::{lone_regions, pair_regions};
 use crate::search::region::{Crop, Region, same_place, unread_regions};
 use crate::search::reread::reread;
 use crate::{Backend, Candidate, Detector};
+use qrpose_core::geometry::frames::PixelPoint;
 use std::time::Instant;
 
 /// Step 1½ (`balanced`, `thorough`; run after step 2), on frames of at most
-/// [`UPSCALE_MAX_SIDE_PX`], when step 1 found nothing at all (neither a symbol nor a
-/// finder-pattern triple) or when two codes or more were read, one of at most
+/// [`UPSCALE_MAX_SIDE_PX`], when step 1 located nothing (neither a symbol nor a
+/// finder-pattern triple; at `balanced`, on a frame of more than
+/// [`super::WHOLE_FRAME_MAX_PIXELS`], with a finder pattern seen) or when two codes or more
+/// were read, one of at most
 /// [`SHARPENED_TRIGGER_MAX_PX_PER_MODULE`] px per module ([`reads_small_codes`]): rxing on
 /// an unsharp-masked copy ([`SHARPEN_SIGMA_PX`], [`SHARPEN_AMOUNT`]). Small codes under
 /// blur (about 2-3 px per module, blur σ ≈ 1 px) lose the light ring of their finder
@@ -35,24 +38,76 @@ use std::time::Instant;
 /// crops would take step 2's passes up to the deadline): the small ones among them get one
 /// double-scale sharpened read of their crop, at most [`SHARPENED_REGIONS_MAX`] of them;
 /// then so do the places of lone finder-pattern pairs ([`pair_regions`]) that no such
-/// triple covers, at most [`SHARPENED_PAIRS_MAX`]. A frame with no finder-like structure
-/// pays the sharpened read once.
+/// triple covers, at most [`SHARPENED_PAIRS_MAX`].
 pub(super) fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
     let image = finds.image;
-    if image.width().max(image.height()) > UPSCALE_MAX_SIDE_PX || !log.may_continue() {
+    if image.width().max(image.height()) <= UPSCALE_MAX_SIDE_PX {
+        sharpened_read(finds, None, log);
+    }
+}
+
+/// Step 1½ of `balanced` on a frame whose whole-frame reads saw nothing code-like (no
+/// symbol, triple or finder pattern), of more than [`super::WHOLE_FRAME_MAX_PIXELS`] and at
+/// most [`UPSCALE_MAX_SIDE_PX`] on its longer side: the sharpened read of
+/// [`find_sharpened`] on the crops around the [`TILE_PROBES`] busiest tiles only
+/// ([`busiest_tiles`]), logged as `sharpened tile K`. A small code under blur shows no
+/// finder pattern to the first reads (that is why it needs the sharpened read), but its
+/// modules make the strongest fine detail of a frame of smooth surfaces; on a textured
+/// frame the probes cost two small crops, where the whole-frame sharpened read cost more
+/// than every other pass together (docs/measurements/detection.md, 2026-11-28).
+pub(super) fn find_sharpened_tiles(finds: &mut Finds<'_>, log: &mut PassLog) {
+    let image = finds.image;
+    if image.width().max(image.height()) > UPSCALE_MAX_SIDE_PX {
         return;
     }
+    for (k, tile) in busiest_tiles(image).into_iter().enumerate() {
+        if !sharpened_read(finds, Some((k, tile)), log) {
+            return;
+        }
+    }
+}
+
+/// The sharpened read of the whole frame (`area` `None`) or of the crop of `area` (its
+/// index and region), then the crop reads of the small triples and pairs it found; `false`
+/// when the deadline stopped it.
+fn sharpened_read(finds: &mut Finds<'_>, area: Option<(usize, Region)>, log: &mut PassLog) -> bool {
+    let image = finds.image;
+    if !log.may_continue() {
+        return false;
+    }
     let started = Instant::now();
-    let Some(sharp) = sharpen(image, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT) else {
-        return;
+    let crop = area.and_then(|(_, region)| Crop::with_margin(image, &region, 0.0));
+    let (source, name) = match (&area, &crop) {
+        (None, _) => (image, "rxing sharpened".to_owned()),
+        (
+            Some((k, _)),
+            Some(Crop {
+                image: Some(pixels),
+                ..
+            }),
+        ) => (pixels, format!("sharpened tile {k}")),
+        _ => return true,
+    };
+    let Some(sharp) = sharpen(source, SHARPEN_SIGMA_PX, SHARPEN_AMOUNT) else {
+        return true;
     };
     let (read, regions, patterns) = log.run_since(
         started,
-        "rxing sharpened",
+        name,
         |r: &(Vec<Candidate>, Vec<Region>, _)| decoded(&r.0),
         || {
-            let (mut read, regions, patterns) =
-                RxingDetector::located().detect_with_patterns(&sharp);
+            let (read, regions, patterns) = RxingDetector::located().detect_with_patterns(&sharp);
+            let (mut read, regions, patterns) = match &crop {
+                Some(c) => (
+                    read.into_iter().map(|r| c.to_source(r)).collect(),
+                    regions.into_iter().map(|r| c.region_to_source(r)).collect(),
+                    patterns
+                        .into_iter()
+                        .map(|p| c.pattern_to_source(p))
+                        .collect(),
+                ),
+                None => (read, regions, patterns),
+            };
             reread_small_located(image, &mut read);
             (read, regions, patterns)
         },
@@ -67,7 +122,7 @@ pub(super) fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
         .take(SHARPENED_REGIONS_MAX)
         .collect();
     if !look_once_more(finds, &triples, "sharpened region", log, |_| None) {
-        return;
+        return false;
     }
     let pairs: Vec<Region> = unread_regions(pair_regions(&patterns, &finds.found), &finds.found)
         .into_iter()
@@ -76,7 +131,80 @@ pub(super) fn find_sharpened(finds: &mut Finds<'_>, log: &mut PassLog) {
         .collect();
     look_once_more(finds, &pairs, "sharpened pair", log, |crop| {
         double(crop, detector_for(Backend::Rxing).ok())
-    });
+    })
+}
+
+/// Side of the tiles of [`busiest_tiles`], px.
+pub(crate) const TILE_PX: usize = 64;
+/// At most this many tiles get the sharpened read of [`find_sharpened_tiles`].
+pub(crate) const TILE_PROBES: usize = 2;
+/// A tile is probed only when its pixels differ from their right and lower neighbours by at
+/// least this much on average, grey levels: flat frames get no probe.
+pub(crate) const TILE_MIN_DETAIL: u64 = 4;
+
+/// The regions of at most [`TILE_PROBES`] tiles of [`TILE_PX`] with the most fine detail
+/// (the sum of absolute differences of neighbouring pixels, on every other row), each
+/// widened by one tile on every side (a code of up to two tiles across that reaches into
+/// the tile is inside), busiest first; a tile next to one already chosen is skipped.
+fn busiest_tiles(image: &GrayImage) -> Vec<Region> {
+    let (w, h) = (image.width(), image.height());
+    let (tw, th) = (w / TILE_PX, h / TILE_PX);
+    let px = image.pixels();
+    let mut detail = vec![0u64; tw * th];
+    for y in (0..th * TILE_PX).step_by(2) {
+        let row = &px[y * w..(y + 1) * w];
+        let below = &px[(y + 1).min(h - 1) * w..((y + 1).min(h - 1) + 1) * w];
+        for (t, sum) in detail[(y / TILE_PX) * tw..(y / TILE_PX + 1) * tw]
+            .iter_mut()
+            .enumerate()
+        {
+            let span = t * TILE_PX..(t + 1) * TILE_PX;
+            let (here, next) = (&row[span.clone()], &below[span]);
+            let across: u32 = here
+                .windows(2)
+                .map(|p| u32::from(p[0].abs_diff(p[1])))
+                .sum();
+            let down: u32 = here
+                .iter()
+                .zip(next)
+                .map(|(a, b)| u32::from(a.abs_diff(*b)))
+                .sum();
+            *sum += u64::from(across + down);
+        }
+    }
+    let samples = (TILE_PX / 2 * (2 * TILE_PX - 1)) as u64;
+    let mut order: Vec<usize> = (0..detail.len())
+        .filter(|&t| detail[t] >= TILE_MIN_DETAIL * samples)
+        .collect();
+    order.sort_by(|a, b| detail[*b].cmp(&detail[*a]));
+    let mut chosen: Vec<(usize, usize)> = Vec::new();
+    for t in order {
+        let (tx, ty) = (t % tw, t / tw);
+        if chosen
+            .iter()
+            .any(|&(cx, cy)| cx.abs_diff(tx) <= 1 && cy.abs_diff(ty) <= 1)
+        {
+            continue;
+        }
+        chosen.push((tx, ty));
+        if chosen.len() == TILE_PROBES {
+            break;
+        }
+    }
+    let tile = TILE_PX as f64;
+    chosen
+        .into_iter()
+        .filter_map(|(tx, ty)| {
+            let (u, v) = (tx as f64 * tile, ty as f64 * tile);
+            Region::around(
+                &[
+                    PixelPoint::new(u, v),
+                    PixelPoint::new(u + tile - 1.0, v + tile - 1.0),
+                ],
+                tile,
+            )
+        })
+        .collect()
 }
 
 /// Step 1¾ (`balanced`, `thorough`; after the sharpened read or in its place) in a frame

@@ -108,3 +108,146 @@ fn the_zxing_cpp_build_looks_closer_with_the_default_passes_first() {
         "{more:?}"
     );
 }
+
+/// A 1280 × 720 frame of grey 200, dark (40) where `dark(x, y)`.
+fn frame_with(dark: impl Fn(usize, usize) -> bool) -> GrayImage {
+    let (w, h) = (1280, 720);
+    let pixels = (0..w * h)
+        .map(|i| if dark(i % w, i / w) { 40 } else { 200 })
+        .collect();
+    GrayImage::new(w, h, pixels).expect("a size")
+}
+
+/// Whether module (mx, my) is dark in a finder pattern whose top-left module is (0, 0).
+fn finder_dark(mx: usize, my: usize) -> bool {
+    let ring = mx.min(my).min(6 - mx.min(6)).min(6 - my.min(6));
+    mx < 7 && my < 7 && ring != 1
+}
+
+/// The names of the passes `balanced` ran on `image`.
+fn balanced_passes(image: &GrayImage) -> Vec<String> {
+    let mut log = PassLog::new(Duration::from_secs(60));
+    let _ = find_candidates(image, Effort::Balanced, &mut log);
+    log.passes.into_iter().map(|p| p.name).collect()
+}
+
+/// A frame whose whole-frame reads see no symbol, no triple and no finder pattern gets no
+/// whole-frame sharpened read and no crop pass (before the evidence gate it paid the
+/// sharpened read, 5 ms at 1280 × 720, more than all the other passes together): only the
+/// sharpened reads of its busiest tiles, at most [`sharpened::TILE_PROBES`] small crops.
+#[test]
+fn a_frame_without_evidence_runs_only_the_whole_frame_reads_and_tile_probes() {
+    // Stripes: sharp texture, but nothing finder-like.
+    let image = frame_with(|x, y| (x / 37 + y / 53) % 2 == 0 && (x % 37) < 20);
+    let passes = balanced_passes(&image);
+    let (first, rest) = passes.split_at(3.min(passes.len()));
+    assert_eq!(
+        first,
+        ["rxing full", "rxing half", "rxing half global-histogram"],
+        "{passes:?}"
+    );
+    assert!(
+        (1..=sharpened::TILE_PROBES).contains(&rest.len()),
+        "{passes:?}"
+    );
+    for (k, pass) in rest.iter().enumerate() {
+        assert_eq!(pass, &format!("sharpened tile {k}"), "{passes:?}");
+    }
+}
+
+/// A frame without evidence and without fine detail (a smooth ramp: no tile reaches
+/// [`sharpened::TILE_MIN_DETAIL`]) stops after the whole-frame reads.
+#[test]
+fn a_smooth_frame_without_evidence_stops_after_the_whole_frame_reads() {
+    let (w, h) = (1280, 720);
+    let pixels = (0..w * h)
+        .map(|i| (60 + (i % w) * 120 / w + (i / w) * 40 / h) as u8)
+        .collect();
+    let image = GrayImage::new(w, h, pixels).expect("a size");
+    let passes = balanced_passes(&image);
+    assert_eq!(
+        passes,
+        ["rxing full", "rxing half", "rxing half global-histogram"],
+        "{passes:?}"
+    );
+}
+
+/// Three finder patterns of a 21-module symbol with nothing readable between them: step 1
+/// finds the triple but cannot read it, and that evidence sends `balanced` to the crop
+/// passes of step 2 on its region (and nothing on the rest of the frame).
+#[test]
+fn a_frame_with_an_unread_triple_runs_the_crop_passes() {
+    let (module_px, x0, y0) = (5, 500, 250);
+    let image = frame_with(|x, y| {
+        let (Some(dx), Some(dy)) = (x.checked_sub(x0), y.checked_sub(y0)) else {
+            return false;
+        };
+        let (mx, my) = (dx / module_px, dy / module_px);
+        finder_dark(mx, my)
+            || (mx >= 14 && finder_dark(mx - 14, my))
+            || (my >= 14 && finder_dark(mx, my - 14))
+    });
+    let passes = balanced_passes(&image);
+    assert!(
+        passes.iter().any(|p| p.starts_with("region 0 ")),
+        "{passes:?}"
+    );
+    assert!(
+        !passes.iter().any(|p| p.starts_with("whole ")),
+        "{passes:?}"
+    );
+}
+
+/// A frame whose full-resolution read decodes its code and leaves no finder pattern or
+/// triple unexplained is done after that read: the reduced levels would only read the same
+/// code again (the speed benchmark's one-code frame).
+#[test]
+fn a_frame_read_whole_at_full_resolution_stops_after_that_read() {
+    let code = qrcode::QrCode::new(b"ONE-CODE").expect("a QR code");
+    let (modules, colours) = (code.width(), code.to_colors());
+    let (module_px, x0, y0) = (6, 400, 200);
+    let image = frame_with(|x, y| {
+        let (Some(dx), Some(dy)) = (x.checked_sub(x0), y.checked_sub(y0)) else {
+            return false;
+        };
+        let (mx, my) = (dx / module_px, dy / module_px);
+        mx < modules && my < modules && colours[my * modules + mx] == qrcode::Color::Dark
+    });
+    let mut log = PassLog::new(Duration::from_secs(60));
+    let found = find_candidates(&image, Effort::Balanced, &mut log);
+    let texts: Vec<_> = found.iter().filter_map(|c| c.text.as_deref()).collect();
+    assert_eq!(texts, ["ONE-CODE"]);
+    let passes: Vec<&str> = log.passes.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(passes, ["rxing full"]);
+}
+
+/// A frame of at most [`WHOLE_FRAME_MAX_PIXELS`] is read as one crop whatever step 1 saw:
+/// a light-on-dark code, which shows step 1 no finder pattern, is read there by step 3's
+/// negative (the evidence gate once skipped it and lost four of zxing-cpp's test images).
+#[test]
+fn a_small_frame_without_evidence_still_gets_every_pass() {
+    let code = qrcode::QrCode::new(b"LIGHT-ON-DARK").expect("a QR code");
+    let (modules, colours) = (code.width(), code.to_colors());
+    let (w, h, module_px, x0, y0): (usize, usize, usize, usize, usize) = (480, 360, 6, 150, 100);
+    let pixels = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (Some(dx), Some(dy)) = (x.checked_sub(x0), y.checked_sub(y0)) else {
+                return 40;
+            };
+            let (mx, my) = (dx / module_px, dy / module_px);
+            let dark =
+                mx < modules && my < modules && colours[my * modules + mx] == qrcode::Color::Dark;
+            if dark { 200 } else { 40 }
+        })
+        .collect();
+    let image = GrayImage::new(w, h, pixels).expect("a size");
+    assert!(image.pixels().len() <= WHOLE_FRAME_MAX_PIXELS);
+    let mut log = PassLog::new(Duration::from_secs(60));
+    let found = find_candidates(&image, Effort::Balanced, &mut log);
+    let texts: Vec<_> = found.iter().filter_map(|c| c.text.as_deref()).collect();
+    let passes: Vec<&str> = log.passes.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(texts, ["LIGHT-ON-DARK"], "{passes:?}");
+    assert_eq!(passes.first(), Some(&"rxing full"), "{passes:?}");
+    assert!(passes.contains(&"whole inverted"), "{passes:?}");
+}
