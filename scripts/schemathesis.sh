@@ -1,25 +1,32 @@
 #!/usr/bin/env bash
-# Schemathesis against the document the server serves (issue 16): generated requests for
-# every operation, checked for 5xx, undocumented status codes and content types, and answers
-# that break their own schema. Run by .ci/run after `cargo test` (which builds the binary).
+# Schemathesis against the documents the server serves (issues 16 and 23): generated requests
+# for every operation, with every check schemathesis has (`--checks all`): no 5xx, status
+# codes, content types, headers and answers as documented, 405 for other methods, valid data
+# accepted (`positive_data_acceptance`: a request valid by the document is answered 2xx) and
+# invalid data refused (`negative_data_rejection`: one that is not is answered 4xx). Run by
+# .ci/run after `cargo test` (which builds the binary).
 #
 #   scripts/schemathesis.sh [BINARY] [SECONDS]      # defaults: target/debug/qrpose, 180
 #
-# Two bounded runs with a fixed seed, half the time each:
-#   1. positive data (valid by the document) for every operation: no check may fail. The
-#      share of generated POSTs answered 200 is printed per operation; with
-#      QRPOSE_ST_MIN_OK_SHARE=0.33 the run fails below that share. A valid-by-the-document
-#      request is refused only for what no schema says (src/http/openapi_strict.rs: a
-#      quadrilateral that is not convex, magnitudes beyond double precision, bytes that are
-#      not an image, an unknown camera id, the raw form's camera across query parameters).
-#   2. negative data (invalid by the document): no 5xx, and every answer documented.
+# Two servers, one with a site (cameras by id, sizes by payload) and one without, serve two
+# different documents (openapi/openapi-site.json and openapi/openapi.json); both check
+# bearer tokens (`--auth-file`), as the documents say, and schemathesis holds a valid one. Each gets two
+# bounded runs with a fixed seed, a quarter of SECONDS each:
+#   1. positive data (valid by the document) for every operation. A valid request is refused
+#      only for what no schema can say (the residue: src/http/openapi/requests.rs); the
+#      hooks (scripts/schemathesis_hooks.py) map generated requests into the valid subset
+#      for each rule of it, in this run only, each mapping documented there with its rule.
+#   2. negative data (invalid by the document), sent as generated.
+# No check may fail in any run. The share of requests answered 200 is printed per operation
+# for the positive runs; with QRPOSE_ST_MIN_OK_SHARE=0.9 the script fails below that share
+# of positive POSTs answered 200.
 # Schemathesis (PyPI, pinned) goes into target/st-venv, created on first use.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 binary=${1:-target/debug/qrpose}
 seconds=${2:-180}
-half=$((seconds / 2))
+quarter=$((seconds / 4))
 venv=target/st-venv
 report=target/schemathesis
 version=4.32.5
@@ -32,11 +39,19 @@ fi
 
 rm -rf "$report"
 mkdir -p "$report"
-log="$report/server.log"
-# Photos of codes for the image endpoints (scripts/schemathesis_hooks.py), and a site so
-# that requests may name camera `front` or leave out the marker size, as the document allows.
+# Photos of codes for the image endpoints and the calibration, and the site of the server
+# that has one.
 "$binary" render --out "$report/code.png" --z-mm 400 >/dev/null
 "$binary" render --out "$report/code.jpg" --z-mm 600 --payload TOTE-1 >/dev/null
+# Views of one code from four angles, small, for the calibration.
+views=()
+for angles in "0 0" "25 0" "0 25" "-20 15"; do
+  read -r alpha beta <<<"$angles"
+  view="$report/view_${alpha}_${beta}.jpg"
+  "$binary" render --out "$view" --z-mm 250 --alpha-deg "$alpha" --beta-deg "$beta" \
+    --width-px 320 --height-px 240 >/dev/null
+  views+=("$view")
+done
 cat >"$report/site.yaml" <<'YAML'
 cameras:
   front:
@@ -44,53 +59,104 @@ cameras:
 markers:
   default_size_mm: 50
 YAML
+# The documents describe a server that checks tokens (`--auth-file`, src/http/openapi/security.rs:
+# each protected operation names its scope); both servers run with one, and schemathesis
+# sends the token of a client with every scope through the documents' `bearer` scheme, so
+# that `ignored_auth` checks that a missing or wrong token is refused (401).
+export QRPOSE_ST_TOKEN=$("$binary" auth add schemathesis --scopes pose,site,admin,metrics \
+  --file "$report/auth.yaml" 2>/dev/null)
+[[ -n "$QRPOSE_ST_TOKEN" ]] || { echo "qrpose auth add printed no token" >&2; exit 1; }
+cat >"$report/schemathesis.toml" <<'TOML'
+[auth.openapi.bearer]
+bearer = "${QRPOSE_ST_TOKEN}"
+TOML
 export QRPOSE_ST_IMAGES="$report/code.png:$report/code.jpg"
+QRPOSE_ST_VIEWS=$(IFS=:; echo "${views[*]}")
+export QRPOSE_ST_VIEWS
 export SCHEMATHESIS_HOOKS=schemathesis_hooks
 export PYTHONPATH="$PWD/scripts${PYTHONPATH:+:$PYTHONPATH}"
-# Generous limits: schemathesis sends many requests at once; the queue is not what is tested
-# here. The server answers every request within its 20 s timeout (503 `timeout` at worst, a
-# documented answer: a `thorough` detection of a large photo in this debug build can take
-# that long), and schemathesis waits 30 s for it.
-"$binary" serve --addr 127.0.0.1:0 --queue-length 1000 --request-timeout-ms 20000 \
-  --site "$report/site.yaml" \
-  >"$report/address" 2>"$log" &
-server=$!
-trap 'kill "$server" 2>/dev/null || true' EXIT
-for _ in $(seq 100); do
-  [[ -s "$report/address" ]] && break
-  sleep 0.1
-done
-url=$(sed -n 's|^listening on \(http://[^ ]*\).*|\1|p' "$report/address")
-[[ -n "$url" ]] || { echo "the server did not start: $(cat "$log")" >&2; exit 1; }
 
-checks=not_a_server_error,status_code_conformance,content_type_conformance,response_schema_conformance
-run() {
-  local mode=$1
-  "$venv/bin/st" run "$url/openapi.json" --seed 1 --mode "$mode" --phases examples,fuzzing \
-    --max-time "$half" --checks "$checks" --no-color --workers 2 --request-timeout 30 \
-    --suppress-health-check all --generation-database none \
-    --report har --report-har-path "$report/$mode.har"
+servers=()
+trap 'for pid in "${servers[@]}"; do kill "$pid" 2>/dev/null || true; done' EXIT
+# Starts a server named $1 with the options after it; its URL in $url. (Not in a command
+# substitution: a subshell would keep the server's pid from the exit trap.)
+start() {
+  local name=$1
+  shift
+  # A long queue: the queue is not what is tested here. The server answers every request
+  # within its timeout, 503 `timeout` at worst (a `thorough` detection of a large photo in
+  # the debug build can take longer on a loaded machine); 8 s keeps every answer within the
+  # response time `--checks all` allows (`max_response_time`, 10 s by default), which so
+  # checks that the timeout bounds each answer. Schemathesis itself waits up to 30 s.
+  "$binary" serve --addr 127.0.0.1:0 --queue-length 1000 --request-timeout-ms 8000 "$@" \
+    >"$report/$name.address" 2>"$report/$name.log" &
+  servers+=($!)
+  for _ in $(seq 100); do
+    [[ -s "$report/$name.address" ]] && break
+    sleep 0.1
+  done
+  url=$(sed -n 's|^listening on \(http://[^ ]*\).*|\1|p' "$report/$name.address")
+  [[ -n "$url" ]] || { echo "the $name server did not start: $(cat "$report/$name.log")" >&2; exit 1; }
 }
-run positive
-run negative
+start site --auth-file "$report/auth.yaml" --site "$report/site.yaml"
+site_url=$url
+start no-site --auth-file "$report/auth.yaml"
+plain_url=$url
 
-"$venv/bin/python" - "$report/positive.har" "${QRPOSE_ST_MIN_OK_SHARE:-0}" <<'EOF'
+# Runs schemathesis: $1 the server's name, $2 its URL, $3 positive or negative.
+failed=()
+run() {
+  local name=$1 url=$2 mode=$3
+  local site_file=
+  [[ $name == site ]] && site_file="$report/site.yaml"
+  echo "== $name, $mode data"
+  # Fuzzing only: the examples phase would send the document's examples with an `image`
+  # part that is no image and cannot be mapped without schemathesis counting it negative.
+  # One worker: with two threads, hypothesis's `ast.parse` (describing a strategy) fails now
+  # and then with "SystemError: AST constructor recursion depth mismatch", CPython's
+  # AST recursion counter not being thread-safe (python/cpython#106905, Python 3.11).
+  if ! QRPOSE_ST_MODE=$mode QRPOSE_ST_SITE=$site_file QRPOSE_ST_DROPPED="$report/$name-$mode.dropped" \
+    "$venv/bin/st" --config-file "$report/schemathesis.toml" run "$url/openapi.json" --seed 1 --mode "$mode" --phases fuzzing \
+    --max-time "$quarter" --checks all --no-color --workers 1 --request-timeout 30 \
+    --suppress-health-check all --generation-database none \
+    --report har --report-har-path "$report/$name-$mode.har"; then
+    failed+=("$name $mode")
+  fi
+  # Reports of valid requests that schemathesis labelled negative (the hooks' filter_failure).
+  echo "$name, $mode data: $(cat "$report/$name-$mode.dropped" 2>/dev/null | wc -l) reports of valid requests labelled negative dropped"
+}
+run site "$site_url" positive
+run site "$site_url" negative
+run no-site "$plain_url" positive
+run no-site "$plain_url" negative
+
+"$venv/bin/python" - "${QRPOSE_ST_MIN_OK_SHARE:-0}" "$report"/*.har <<'EOF'
 import collections, json, sys
-entries = json.load(open(sys.argv[1]))["log"]["entries"]
-posts = collections.Counter()
-ok = collections.Counter()
-for e in entries:
-    if e["request"]["method"] != "POST":
-        continue
-    path = e["request"]["url"].split("?")[0].split("/", 3)[-1]
-    posts[path] += 1
-    ok[path] += e["response"]["status"] == 200
-for path in sorted(posts):
-    print(f"positive POST /{path}: {ok[path]} of {posts[path]} answered 200 "
-          f"({100 * ok[path] / posts[path]:.0f} %)")
-total, answered = sum(posts.values()), sum(ok.values())
-print(f"positive POSTs: {answered} of {total} answered 200 ({100 * answered / max(total, 1):.0f} %)")
-minimum = float(sys.argv[2])
-if total == 0 or answered < minimum * total:
-    sys.exit(f"fewer than {minimum:.0%} of the positive POSTs were answered 200")
+minimum = float(sys.argv[1])
+short = []
+for har in sys.argv[2:]:
+    entries = json.load(open(har))["log"]["entries"]
+    sent = collections.Counter()
+    ok = collections.Counter()
+    for e in entries:
+        operation = e["request"]["method"] + " /" + e["request"]["url"].split("?")[0].split("/", 3)[-1]
+        sent[operation] += 1
+        ok[operation] += e["response"]["status"] == 200
+    print(f"{har.rsplit('/', 1)[-1]}:")
+    for operation in sorted(sent):
+        print(f"  {operation}: {sent[operation]} requests, {ok[operation]} answered 200 "
+              f"({100 * ok[operation] / sent[operation]:.0f} %)")
+    if "positive" in har:
+        posts = [o for o in sent if o.startswith("POST /v1/pose")]
+        total, answered = sum(sent[o] for o in posts), sum(ok[o] for o in posts)
+        print(f"  positive pose POSTs: {answered} of {total} answered 200 "
+              f"({100 * answered / max(total, 1):.0f} %)")
+        if total == 0 or answered < minimum * total:
+            short.append(har)
+if short:
+    sys.exit(f"fewer than {minimum:.0%} of the positive pose POSTs were answered 200: {short}")
 EOF
+if ((${#failed[@]})); then
+  echo "schemathesis found failures in: ${failed[*]}" >&2
+  exit 1
+fi

@@ -158,6 +158,19 @@ impl Default for SolverDto {
     }
 }
 
+/// The documentation of `corners_px` and `corners_mm`, in the code and in the document (a
+/// field with its own schema function gets no description from its doc comment).
+macro_rules! corners_doc {
+    (px) => {
+        "Four corners in pixels, `[u, v]` each (u right, v down, integer = pixel centre), in \
+         `corner_order`. Give this or `corners_mm`."
+    };
+    (mm) => {
+        "Four corners in image-plane millimetres (the paper's form, x' = x_n · f), with \
+         `camera.focal_length_mm`. Give this or `corners_px`."
+    };
+}
+
 /// `POST /v1/pose/corners`: four corners of one QR code, the camera and the marker size.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -169,13 +182,11 @@ impl Default for SolverDto {
     "solver": {"method": "reprojection"}
 }))]
 pub struct CornersRequest {
-    /// Four corners in pixels, `[u, v]` each (u right, v down, integer = pixel centre), in
-    /// `corner_order`. Give this or `corners_mm`.
-    #[schema(value_type = Option<Vec<[f64; 2]>>, min_items = 4, max_items = 4)]
+    #[doc = corners_doc!(px)]
+    #[schema(schema_with = corners_px_schema)]
     pub corners_px: Option<Vec<Vec<f64>>>,
-    /// Four corners in image-plane millimetres (the paper's form, x' = x_n · f), with
-    /// `camera.focal_length_mm`. Give this or `corners_px`.
-    #[schema(value_type = Option<Vec<[f64; 2]>>, min_items = 4, max_items = 4)]
+    #[doc = corners_doc!(mm)]
+    #[schema(schema_with = corners_mm_schema)]
     pub corners_mm: Option<Vec<Vec<f64>>>,
     /// Order of the corners (default `qr`).
     #[serde(default)]
@@ -198,6 +209,36 @@ pub struct CornersRequest {
     /// (`reprojection` only); `ambiguity.resolved_by` says when it decided.
     #[serde(default)]
     pub prior: Option<PriorDto>,
+}
+
+/// The schema of a corner list: four distinct `[u, v]` pairs of numbers (else
+/// `corner_count`, `invalid_type` or `duplicate_corners`, [`four_corners`] and
+/// [`ImageQuad::try_new`]), described as `description`.
+fn corner_list_schema(description: &str) -> utoipa::openapi::schema::Array {
+    use utoipa::openapi::schema::{ArrayBuilder, KnownFormat, ObjectBuilder, SchemaFormat, Type};
+    let number = ObjectBuilder::new()
+        .schema_type(Type::Number)
+        .format(Some(SchemaFormat::KnownFormat(KnownFormat::Double)));
+    let pair = ArrayBuilder::new()
+        .items(number)
+        .min_items(Some(2))
+        .max_items(Some(2));
+    ArrayBuilder::new()
+        .items(pair)
+        .min_items(Some(4))
+        .max_items(Some(4))
+        .unique_items(true)
+        .description(Some(description))
+        .build()
+}
+
+/// [`corner_list_schema`] of `corners_px`.
+fn corners_px_schema() -> utoipa::openapi::schema::Array {
+    corner_list_schema(corners_doc!(px))
+}
+/// [`corner_list_schema`] of `corners_mm`.
+fn corners_mm_schema() -> utoipa::openapi::schema::Array {
+    corner_list_schema(corners_doc!(mm))
 }
 
 /// Which unit corners come in.

@@ -8,7 +8,9 @@
 //! names the query parameter, as a raw-body request's would.
 //!
 //! Without query parameters the part is parsed exactly as before (its problems quote the
-//! part's own line and column).
+//! part's own line and column). Each query parameter given must be in its own range
+//! ([`ImageQuery::check_values`]) even when the part overrides it: the document states the
+//! parameter's range whatever the body, and the server refuses what it says is invalid.
 
 use super::{ImageQuery, ImageRequest};
 use crate::api::problem::{Problem, parse_json, parse_json_value};
@@ -58,6 +60,8 @@ pub fn request_of_parts(
     let Some(query) = query.filter(|q| **q != ImageQuery::default()) else {
         return alone();
     };
+    // Each parameter is in its range even where the part overrides it.
+    query.check_values()?;
     let Value::Object(part) = parse_json::<Value>(part_json)? else {
         // Not an object: the part alone says what is wrong with it.
         return alone();
@@ -254,6 +258,43 @@ mod tests {
             Some("/camera/fy_px"),
             "the part gave the camera"
         );
+    }
+
+    #[test]
+    fn a_query_parameter_out_of_range_is_refused_where_the_part_overrides_it() {
+        let body = part(
+            json!({"camera": {"fx_px": 900, "fy_px": 900, "cx_px": 1, "cy_px": 2},
+            "marker": {"size_mm": 40}, "solver": {"max_iterations": 30}, "max_detect_ms": 50}),
+        );
+        for (pairs, code, field) in [
+            ("fx_px=-5", ErrorCode::InvalidCameraParameter, "fx_px"),
+            (
+                "pixel_size_um=0",
+                ErrorCode::InvalidCameraParameter,
+                "pixel_size_um",
+            ),
+            (
+                "marker_size_mm=-1",
+                ErrorCode::InvalidMarkerSize,
+                "marker_size_mm",
+            ),
+            (
+                "max_iterations=0",
+                ErrorCode::SolverParameterOutOfRange,
+                "max_iterations",
+            ),
+            (
+                "max_detect_ms=0",
+                ErrorCode::InvalidDetectionBudget,
+                "max_detect_ms",
+            ),
+            ("camera_id=", ErrorCode::UnknownCamera, "camera_id"),
+        ] {
+            let p = request_of_parts(&body, Some(&query(pairs))).expect_err(pairs);
+            assert_eq!((p.code, p.field.as_deref()), (code, Some(field)), "{pairs}");
+        }
+        let fine = query("fx_px=5&marker_size_mm=1&max_iterations=3&max_detect_ms=1");
+        assert!(request_of_parts(&body, Some(&fine)).is_ok());
     }
 
     #[test]

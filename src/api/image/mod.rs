@@ -209,19 +209,8 @@ impl ImageRequest {
             None => Sizing::BySite,
         };
         let solver = self.solver.to_solver()?;
+        self.check_detector()?;
         let detector: DetectorChoice = self.detector.into();
-        if let DetectorChoice::Only(backend) = detector
-            && !backend.is_built()
-        {
-            return Err(Problem::new(
-                ErrorCode::DetectorUnavailable,
-                format!(
-                    "the {} detector is not built into this server (cargo feature `zxing-cpp`); use auto, rqrr or rxing",
-                    backend.as_str()
-                ),
-            )
-            .with_field("/detector"));
-        }
         let reprojection = solver.method() == Method::Reprojection;
         let points = match self.points {
             Some(PointsDto::Finders) if !reprojection => {
@@ -256,6 +245,21 @@ impl ImageRequest {
             },
             decode: limits.decode,
         })
+    }
+
+    /// Refuses a detector that is not built into this server.
+    fn check_detector(&self) -> Result<(), Problem> {
+        match DetectorChoice::from(self.detector) {
+            DetectorChoice::Only(backend) if !backend.is_built() => Err(Problem::new(
+                ErrorCode::DetectorUnavailable,
+                format!(
+                    "the {} detector is not built into this server (cargo feature `zxing-cpp`); use auto, rqrr or rxing",
+                    backend.as_str()
+                ),
+            )
+            .with_field("/detector")),
+            _ => Ok(()),
+        }
     }
 
     /// The detection deadline asked for, capped at `cap`; `None` for the effort's default

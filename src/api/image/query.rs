@@ -8,12 +8,15 @@
 //! parameter the client wrote (`fx_px`) by [`ImageQuery::problem_in_query_terms`].
 
 use super::{DetectorDto, EffortDto, ImageRequest, PointsDto};
-use crate::api::problem::Problem;
+use crate::api::problem::{ErrorCode, Problem};
+use crate::api::refusal::problem_from_camera_error;
 use crate::api::request::{CameraDto, DistortionDto, MarkerDto, MethodDto, SolverDto};
 use crate::app::{ImageLimits, ImageSetup};
+use crate::geometry::camera::{CameraError, CameraParam};
 use qrpose_site::Site;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+use std::time::Duration;
 use utoipa::IntoParams;
 
 /// The image request as flat parameters (query string or command-line flags). Numeric flags
@@ -169,6 +172,52 @@ impl ImageQuery {
             max_detect_ms: self.max_detect_ms,
             prior: None,
         })
+    }
+
+    /// Checks each parameter given against its own range, as the document states it, apart
+    /// from the others: with a multipart body the `request` part may override a parameter
+    /// (`merge`), and an out-of-range value is refused all the same. Whether the parameters
+    /// make a whole request is not checked here (the part may give the rest). A problem's
+    /// `field` names the parameter.
+    ///
+    /// # Errors
+    /// `invalid_camera_parameter` or `non_finite_number` for a focal length or pixel size,
+    /// `invalid_marker_size`, the solver's `solver_parameter_out_of_range`,
+    /// `invalid_detection_budget`, `detector_unavailable`, and `unknown_camera` for an empty
+    /// `camera_id`.
+    pub fn check_values(&self) -> Result<(), Problem> {
+        self.clone()
+            .into_request()
+            .and_then(|request| {
+                let positive = [
+                    (request.camera.fx_px, CameraParam::FxPx),
+                    (request.camera.fy_px, CameraParam::FyPx),
+                    (request.camera.focal_length_mm, CameraParam::FocalLengthMm),
+                    (request.camera.pixel_size_um, CameraParam::PixelSizeUm),
+                ];
+                for (value, param) in positive {
+                    match value {
+                        Some(v) if !v.is_finite() => Err(CameraError::NonFinite { param }),
+                        Some(v) if v <= 0.0 => Err(CameraError::NonPositive { param, value: v }),
+                        _ => Ok(()),
+                    }
+                    .map_err(|e| problem_from_camera_error(e, "/camera"))?;
+                }
+                if request.camera.id.as_deref() == Some("") {
+                    return Err(Problem::new(ErrorCode::UnknownCamera, "camera_id is empty")
+                        .with_field(CAMERA_ID_POINTER));
+                }
+                request
+                    .marker
+                    .as_ref()
+                    .map(MarkerDto::to_marker)
+                    .transpose()?;
+                request.solver.to_solver()?;
+                // Only the range is checked: any cap will do.
+                request.max_detect(Duration::ZERO)?;
+                request.check_detector()
+            })
+            .map_err(Self::problem_in_query_terms)
     }
 
     /// Validates the request these parameters stand for ([`ImageRequest::setup`]); a

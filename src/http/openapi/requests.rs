@@ -3,13 +3,40 @@
 //! a site camera and the marker size is required; without the zxing-cpp detector built in,
 //! `zxing-cpp` is not a detector to ask for.
 //!
-//! What stays outside any schema (the residue, `docs/service.md`, Fuzzing): a quadrilateral
-//! that is not convex or whose corners coincide, a pose behind the camera, magnitudes beyond
-//! double precision (`numerically_degenerate`), bytes that are not a JPEG or PNG, a camera id
-//! or payload the loaded site does not know, and a coefficient the lens model does not have
-//! given as 0 (accepted, though the model's schema leaves it out).
+//! The cross-field rule a schema can say is written here too: `points = finders` needs
+//! `method = reprojection` (a `not` on the image request).
+//!
+//! What stays outside any schema (the residue, `docs/service.md`, Fuzzing), each refused
+//! with its own code although the request is valid by the document:
+//! - a quadrilateral that is not convex or not clockwise, or whose corners nearly coincide
+//!   or nearly lie on a line (`non_convex_corners`, `mirrored_corners`,
+//!   `duplicate_corners`, `collinear_corners`: relative tolerances no schema can state);
+//! - corners no pose fits: the paper's iteration settles only on axis and square on, and
+//!   elsewhere can drift until its corners are collinear (`no_solution`); a corner that
+//!   cannot be undistorted with the given coefficients (`undistortion_failed`);
+//! - magnitudes beyond double precision: a focal length that overflows once divided by the
+//!   pixel size, a subnormal that parses as 0, a quaternion too small to normalise
+//!   (`non_finite_number`, `numerically_degenerate`, `invalid_camera_parameter`,
+//!   `invalid_prior`);
+//! - bytes that are not a JPEG or PNG (`undecodable_image`); photos for `POST /v1/calibrate`
+//!   that do not show one code, decoded in at least three of them, at one size
+//!   (`no_code_found`, `too_few_views`, `mixed_image_sizes`);
+//! - a camera id or payload the loaded site does not know (`unknown_camera`,
+//!   `unknown_marker_size`);
+//! - what OpenAPI cannot tie across the query and the body: with a raw image body the camera
+//!   (in one of its forms) and, without a site, `marker_size_mm` are required; and
+//!   `points = finders` with another method when one of them comes from the query.
+//!
+//! And one place where the server accepts more than the document: a multipart `request`
+//! part without the camera or marker when the query parameters give them (the document
+//! requires them in the part).
 
 use super::variants::{Variant, non_null, reference, split};
+use crate::api::image::PointsDto;
+use crate::api::request::MethodDto;
+use crate::estimate::Method;
+use crate::geometry::distortion::DistortionModel;
+use clap::ValueEnum;
 use serde_json::{Value, json};
 
 /// What the served document says depends on: the server's configuration.
@@ -51,6 +78,7 @@ pub fn write_alternatives(doc: &mut Value, served: Served) {
     corners(doc, served);
     prior(doc);
     distortion(doc);
+    finders_need_reprojection(doc);
     if !served.site {
         require(doc, "ImageRequest", "marker");
     }
@@ -65,14 +93,14 @@ fn camera(doc: &mut Value, served: Served) {
     let mut forms = vec![
         Variant {
             name: "CameraPixels",
-            title: "pixels",
+            summary: "pixels",
             fields: &["fx_px", "fy_px", "cx_px", "cy_px", "distortion"],
             required: &["fx_px", "fy_px", "cx_px", "cy_px"],
             overrides: vec![],
         },
         Variant {
             name: "CameraSensor",
-            title: "sensor",
+            summary: "sensor",
             fields: &[
                 "focal_length_mm",
                 "pixel_size_um",
@@ -87,7 +115,7 @@ fn camera(doc: &mut Value, served: Served) {
     if served.site {
         forms.push(Variant {
             name: SITE_CAMERA,
-            title: "site camera",
+            summary: "site camera",
             fields: &["id"],
             required: &["id"],
             overrides: vec![],
@@ -95,7 +123,7 @@ fn camera(doc: &mut Value, served: Served) {
     }
     forms.push(Variant {
         name: "CameraImagePlane",
-        title: "image plane (corners_mm only)",
+        summary: "image plane (corners_mm only)",
         fields: &["focal_length_mm", "pixel_size_um", "distortion"],
         required: &["focal_length_mm"],
         overrides: vec![],
@@ -119,34 +147,23 @@ fn corners(doc: &mut Value, served: Served) {
     } else {
         &["corners_mm", "camera", "marker"]
     };
-    // Corners that coincide are `duplicate_corners`.
-    let corners = json!({"uniqueItems": true});
     split(
         doc,
         "CornersRequest",
         &[
             Variant {
                 name: "PixelCornersRequest",
-                title: "corners in pixels",
+                summary: "corners in pixels",
                 fields: PIXEL_CORNERS,
                 required: required_px,
-                overrides: vec![(
-                    "corners_px",
-                    merged_with(doc, "CornersRequest", "corners_px", &corners),
-                )],
+                overrides: vec![],
             },
             Variant {
                 name: "PlaneCornersRequest",
-                title: "corners in image-plane mm",
+                summary: "corners in image-plane mm",
                 fields: PLANE_CORNERS,
                 required: required_mm,
-                overrides: vec![
-                    (
-                        "corners_mm",
-                        merged_with(doc, "CornersRequest", "corners_mm", &corners),
-                    ),
-                    ("camera", reference("CameraImagePlane")),
-                ],
+                overrides: vec![("camera", reference("CameraImagePlane"))],
             },
         ],
     );
@@ -183,14 +200,14 @@ fn prior(doc: &mut Value) {
         &[
             Variant {
                 name: "MarkerPrior",
-                title: "the code's rotation",
+                summary: "the code's rotation",
                 fields: &["marker_quaternion_wxyz", "sigma_deg"],
                 required: &["marker_quaternion_wxyz", "sigma_deg"],
                 overrides: vec![("marker_quaternion_wxyz", marker)],
             },
             Variant {
                 name: "RobotPrior",
-                title: "the robot's rotation",
+                summary: "the robot's rotation",
                 fields: &["robot_quaternion_wxyz", "sigma_deg"],
                 required: &["robot_quaternion_wxyz", "sigma_deg"],
                 overrides: vec![("robot_quaternion_wxyz", robot)],
@@ -199,35 +216,87 @@ fn prior(doc: &mut Value) {
     );
 }
 
-/// The lens models, each with its own coefficients.
+/// Every field of a distortion: the model and the coefficients of the largest model
+/// (`rational_polynomial`), in OpenCV's order.
+const DISTORTION_FIELDS: &[&str] = &["model", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"];
+
+/// The coefficients `model` does not have, each `0` or omitted (the server refuses any other
+/// value, `invalid_camera_parameter`).
+fn not_in(model: DistortionModel) -> Vec<(&'static str, Value)> {
+    DistortionModel::RationalPolynomial
+        .params()
+        .iter()
+        .filter(|p| !model.params().contains(p))
+        .map(|p| {
+            let description = format!("Not a coefficient of `{}`: 0 or omitted.", model.name());
+            (p.name(), json!({"const": 0, "description": description}))
+        })
+        .collect()
+}
+
+/// The lens models, each with its own coefficients (and those it does not have, at 0).
 fn distortion(doc: &mut Value) {
+    let model = |value: Value, lacking: DistortionModel| {
+        let mut overrides = vec![("model", value)];
+        overrides.extend(not_in(lacking));
+        overrides
+    };
     split(
         doc,
         "DistortionDto",
         &[
             Variant {
                 name: "DistortionPlumbBob",
-                title: "plumb_bob",
-                fields: &["model", "k1", "k2", "p1", "p2", "k3"],
+                summary: "plumb_bob",
+                fields: DISTORTION_FIELDS,
                 required: &[],
-                overrides: vec![("model", json!({"enum": ["plumb_bob", null]}))],
+                overrides: model(
+                    json!({"enum": ["plumb_bob", null]}),
+                    DistortionModel::PlumbBob,
+                ),
             },
             Variant {
                 name: "DistortionRationalPolynomial",
-                title: "rational_polynomial",
-                fields: &["model", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"],
+                summary: "rational_polynomial",
+                fields: DISTORTION_FIELDS,
                 required: &["model"],
-                overrides: vec![("model", json!({"const": "rational_polynomial"}))],
+                overrides: model(
+                    json!({"const": "rational_polynomial"}),
+                    DistortionModel::RationalPolynomial,
+                ),
             },
             Variant {
                 name: "DistortionEquidistant",
-                title: "equidistant",
-                fields: &["model", "k1", "k2", "k3", "k4"],
+                summary: "equidistant",
+                fields: DISTORTION_FIELDS,
                 required: &["model"],
-                overrides: vec![("model", json!({"const": "equidistant"}))],
+                overrides: model(
+                    json!({"const": "equidistant"}),
+                    DistortionModel::Equidistant,
+                ),
             },
         ],
     );
+}
+
+/// `points = finders` needs `method = reprojection` (else `points_need_reprojection`; an
+/// omitted method is `reprojection`): the image request is not one with `points: finders`
+/// and another `solver.method`.
+fn finders_need_reprojection(doc: &mut Value) {
+    let others: Vec<Value> = MethodDto::value_variants()
+        .iter()
+        .filter(|m| Method::from(**m) != Method::Reprojection)
+        .map(|m| json!(m))
+        .collect();
+    if let Some(schema) = doc.pointer_mut("/components/schemas/ImageRequest") {
+        schema["not"] = json!({
+            "required": ["points", "solver"],
+            "properties": {
+                "points": {"const": PointsDto::Finders},
+                "solver": {"required": ["method"], "properties": {"method": {"enum": others}}},
+            },
+        });
+    }
 }
 
 /// Makes `field` of component `object` required (and never null).
@@ -260,6 +329,73 @@ mod tests {
     #[test]
     fn both_corners_forms_share_every_field_but_the_corners() {
         assert_eq!(PIXEL_CORNERS[1..], PLANE_CORNERS[1..]);
+    }
+
+    /// A validator of component `name` of the document of `served`.
+    fn validator(served: Served, name: &str) -> jsonschema::Validator {
+        let json = crate::http::openapi::openapi_json(served).expect("a document");
+        let mut root: Value = serde_json::from_str(&json).expect("JSON");
+        root["$ref"] = json!(format!("#/components/schemas/{name}"));
+        jsonschema::draft202012::new(&root).expect("a valid schema")
+    }
+
+    #[test]
+    fn finders_are_valid_with_reprojection_only() {
+        let camera = json!({"fx_px": 1000, "fy_px": 1000, "cx_px": 640, "cy_px": 360});
+        let request = |points: &str, solver: Value| {
+            json!({"camera": camera, "marker": {"size_mm": 50}, "points": points,
+                   "solver": solver})
+        };
+        let image = validator(Served::default(), "ImageRequest");
+        for (points, solver, valid) in [
+            ("finders", json!({}), true),
+            ("finders", json!({"method": "reprojection"}), true),
+            ("finders", json!({"method": "paper"}), false),
+            ("finders", json!({"method": "depth-newton"}), false),
+            ("corners", json!({"method": "paper"}), true),
+        ] {
+            let r = request(points, solver);
+            assert_eq!(image.is_valid(&r), valid, "{r}");
+        }
+    }
+
+    #[test]
+    fn a_corner_is_a_pair_and_corners_are_distinct() {
+        let corners = validator(Served::default(), "CornersRequest");
+        let request = |corners_px: Value| {
+            json!({"corners_px": corners_px, "marker": {"size_mm": 50},
+                   "camera": {"fx_px": 1000, "fy_px": 1000, "cx_px": 640, "cy_px": 360}})
+        };
+        let square = json!([[0, 0], [10, 0], [10, 10], [0, 10]]);
+        assert!(corners.is_valid(&request(square)));
+        for bad in [
+            json!([[0, 0], [10, 0], [10, 10], [0, 10, 1]]),
+            json!([[0, 0], [10, 0], [10, 10], [0]]),
+            json!([[0, 0], [10, 0], [10, 10], [0, 0]]),
+            json!([[0, 0], [10, 0], [10, 10]]),
+        ] {
+            assert!(!corners.is_valid(&request(bad.clone())), "{bad}");
+        }
+    }
+
+    #[test]
+    fn every_model_lists_every_coefficient_and_fixes_those_it_lacks_at_0() {
+        let names: Vec<&str> = DistortionModel::RationalPolynomial
+            .params()
+            .iter()
+            .map(|p| p.name())
+            .collect();
+        assert_eq!(DISTORTION_FIELDS[1..], names[..]);
+        let lens = validator(Served::default(), "DistortionDto");
+        for (distortion, valid) in [
+            (json!({"k1": 0.1, "k4": 0}), true),
+            (json!({"k1": 0.1, "k4": 0.5}), false),
+            (json!({"model": "equidistant", "k4": 0.5, "p1": 0.0}), true),
+            (json!({"model": "equidistant", "p1": 0.1}), false),
+            (json!({"model": "rational_polynomial", "k6": 0.5}), true),
+        ] {
+            assert_eq!(lens.is_valid(&distortion), valid, "{distortion}");
+        }
     }
 
     #[test]

@@ -15,8 +15,10 @@ use serde_json::{Map, Value, json};
 pub struct Variant {
     /// The component's name.
     pub name: &'static str,
-    /// What the alternative is, for people (`title`).
-    pub title: &'static str,
+    /// What the alternative is, for people: the first line of its description. Not a
+    /// `title`, which generators take for the class name (openapi-python-client would make
+    /// `CornersInPixels` of "corners in pixels" instead of `PixelCornersRequest`).
+    pub summary: &'static str,
     /// The derived object's fields that make it up.
     pub fields: &'static [&'static str],
     /// The fields it requires (never null).
@@ -76,13 +78,13 @@ fn variant_of(object: &Value, v: &Variant) -> Value {
     }
     let mut out = json!({
         "type": "object",
-        "title": v.title,
         "properties": properties,
         "additionalProperties": false,
     });
-    if let Some(description) = object.get("description") {
-        out["description"] = description.clone();
-    }
+    out["description"] = match object.get("description").and_then(Value::as_str) {
+        Some(description) => json!(format!("This alternative: {}.\n\n{description}", v.summary)),
+        None => json!(format!("This alternative: {}.", v.summary)),
+    };
     if !v.required.is_empty() {
         out["required"] = json!(v.required);
     }
@@ -152,14 +154,14 @@ mod tests {
             &[
                 Variant {
                     name: "ThingA",
-                    title: "with a",
+                    summary: "with a",
                     fields: &["a", "c"],
                     required: &["a"],
                     overrides: vec![],
                 },
                 Variant {
                     name: "ThingB",
-                    title: "with b",
+                    summary: "with b",
                     fields: &["b", "c"],
                     required: &["b"],
                     overrides: vec![("c", json!({"const": "x"}))],
@@ -173,6 +175,11 @@ mod tests {
         );
         assert_eq!(s["Thing"]["description"], "A thing.");
         let a = &s["ThingA"];
+        assert_eq!(a["description"], "This alternative: with a.\n\nA thing.");
+        assert!(
+            a.get("title").is_none(),
+            "no title: generators name classes by it"
+        );
         assert_eq!(a["additionalProperties"], false);
         assert_eq!(a["required"], json!(["a"]));
         assert_eq!(a["properties"]["a"]["type"], "number", "required: not null");
