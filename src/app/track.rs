@@ -26,6 +26,12 @@ use std::time::Instant;
 /// code appears within this many frames (a third of a second at 30 fps).
 pub const DEFAULT_FULL_SEARCH_EVERY: u32 = 10;
 
+/// The corner noise the tracker fuses refined corners with, px per coordinate: the detector's
+/// measured corner error on the rendered accuracy set (docs/detection.md, Current figures:
+/// p90 0.129 px from the true corner), read as a 2-D Gaussian's radius at 90 %
+/// (σ = 0.129 / √(2 ln 10)). Unrefined corners keep the solver's `corner_sigma_px`.
+const REFINED_CORNER_SIGMA_PX: f64 = 0.06;
+
 /// A validated stream setup: the image request of every frame and the tracker's parameters.
 #[derive(Debug, Clone)]
 pub struct TrackSetup {
@@ -228,7 +234,11 @@ fn measurement_of(m: &MarkerAnswer, setup: &ImageSetup) -> Option<Measurement> {
     let (marker, _) = m.marker.as_ref()?;
     let estimate = m.pose.as_ref().ok()?;
     let quad = ImageQuad::try_new(*m.code.corners_px(), CornerOrder::Qr).ok()?;
-    let sigma = setup.pose.solver.as_reprojection().corner_sigma_px;
+    let sigma = if m.code.is_refined() {
+        REFINED_CORNER_SIGMA_PX
+    } else {
+        setup.pose.solver.as_reprojection().corner_sigma_px
+    };
     Measurement::from_estimate(
         m.code.candidate.text.clone(),
         marker,
