@@ -51,8 +51,9 @@ pub struct TrackQuery {
     #[arg(long, allow_negative_numbers = true)]
     #[param(exclusive_minimum = 0)]
     pub angular_accel_psd_rad2_s3: Option<f64>,
-    /// Factor on the variance of each frame's corners (`corner_sigma_px`²) before they are
-    /// fused.
+    /// Factor on the variance of each frame's corners before they are fused: of refined
+    /// corners, (0.06 px)², the detector's measured corner error (docs/stream.md); of
+    /// corners the detector could not refine, `corner_sigma_px`².
     #[arg(long, allow_negative_numbers = true)]
     #[param(exclusive_minimum = 0)]
     pub measurement_inflation: Option<f64>,
