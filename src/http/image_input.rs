@@ -135,7 +135,10 @@ impl FromRequest<AppState> for ImageInput {
 /// The share of the body budget ([`crate::http::queue::EstimationQueue::take_body_bytes`])
 /// that `request`'s body may need: its declared length, or the body limit when it declares
 /// none (chunked). Taken before a byte is read, so that bodies being read count too.
-fn take_body_bytes(request: &Request, state: &AppState) -> Result<BudgetPermit, ApiError> {
+pub(crate) fn take_body_bytes(
+    request: &Request,
+    state: &AppState,
+) -> Result<BudgetPermit, ApiError> {
     let limit_bytes = state.settings.body_limit_bytes;
     let bytes =
         extract::declared_length(request.headers()).map_or(limit_bytes, |n| n.min(limit_bytes));
@@ -145,7 +148,7 @@ fn take_body_bytes(request: &Request, state: &AppState) -> Result<BudgetPermit, 
 }
 
 /// Body bytes that give their share of the body budget back when the last reference to them
-/// is dropped (the image part of a multipart body refers into it too).
+/// is dropped (the parts of a multipart body refer into it too).
 struct Budgeted {
     bytes: Bytes,
     _permit: BudgetPermit,
@@ -157,7 +160,8 @@ impl AsRef<[u8]> for Budgeted {
     }
 }
 
-fn budgeted(bytes: Bytes, permit: BudgetPermit) -> Bytes {
+/// `bytes` holding `permit` until the last reference to them is dropped.
+pub(crate) fn budgeted(bytes: Bytes, permit: BudgetPermit) -> Bytes {
     Bytes::from_owner(Budgeted {
         bytes,
         _permit: permit,

@@ -11,8 +11,7 @@ use crate::detect::cancel::CancelFlag;
 use crate::http::{
     error::ApiError,
     extract::{self, BodyError, JsonBytes},
-    image_input::{IMAGE_PART, MULTIPART, REQUEST_PART},
-    queue::BudgetPermit,
+    image_input::{self, IMAGE_PART, MULTIPART, REQUEST_PART},
     state::AppState,
 };
 use axum::body::Bytes;
@@ -169,16 +168,9 @@ impl FromRequest<AppState> for CalibrateInput {
             extract::discard_body(request, limit_bytes).await;
             return Err(refusal);
         }
-        let declared =
-            extract::declared_length(request.headers()).map_or(limit_bytes, |n| n.min(limit_bytes));
-        let permit = state
-            .queue
-            .take_body_bytes(u64::try_from(declared).unwrap_or(u64::MAX))?;
+        let permit = image_input::take_body_bytes(&request, state)?;
         let request = extract::buffer_body(request, limit_bytes, |bytes| {
-            Bytes::from_owner(Budgeted {
-                bytes,
-                _permit: permit,
-            })
+            image_input::budgeted(bytes, permit)
         })
         .await
         .map_err(|e| match e {
@@ -242,19 +234,6 @@ impl FromRequest<AppState> for CalibrateInput {
             photos,
             request_json,
         })
-    }
-}
-
-/// Body bytes that give their share of the body budget back when the last reference to them
-/// is dropped (the photos refer into the body).
-struct Budgeted {
-    bytes: Bytes,
-    _permit: BudgetPermit,
-}
-
-impl AsRef<[u8]> for Budgeted {
-    fn as_ref(&self) -> &[u8] {
-        &self.bytes
     }
 }
 
