@@ -4,9 +4,9 @@
 //!
 //! The answer ([`CalibrateResponse`]) carries the camera in the pose requests' pixel form
 //! with its distortion model and coefficients, one standard deviation per parameter, every
-//! photo's view (used or why not), the warnings, the image coverage and the two calibration
-//! files the site file reads as they are (`opencv_yaml`, `ros_camera_info_yaml`;
-//! docs/calibration.md).
+//! photo's view (used or why not, with each point's measurement, residual and robust
+//! weight), the warnings, the image coverage and the two calibration files the site file
+//! reads as they are (`opencv_yaml`, `ros_camera_info_yaml`; docs/calibration.md).
 
 use super::camera::DistortionModelDto;
 use super::image::response::ImageSizeDto;
@@ -104,6 +104,27 @@ pub struct CalibrationStdDto {
     pub coefficients: Vec<Option<f64>>,
 }
 
+/// One calibration point of a photo: where it was measured and, under the fit, its residual
+/// and robust weight (for drawing: the point at `image_px`, the fitted camera's projection
+/// of it at `image_px + residual_px`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({"image_px": [212.37, 148.91], "residual_px": [0.031, -0.018], "weight": 1.0}))]
+pub struct CalibrationPointDto {
+    /// Where it was measured in the photo, px (u right, v down, integer coordinates at pixel
+    /// centres: docs/conventions.md, Pixels).
+    #[schema(min_items = 2, max_items = 2)]
+    pub image_px: [f64; 2],
+    /// The target point projected by the calibrated camera and the view's pose, minus
+    /// `image_px`, px, under the fit that used or dropped the view; null when the view has
+    /// no fit (`too_few_points`, `homography_failed`).
+    #[schema(min_items = 2, max_items = 2)]
+    pub residual_px: Option<[f64; 2]>,
+    /// Its robust (Huber) weight in that fit, in (0, 1]: 1 for a full inlier, below 1 for a
+    /// point down-weighted as an outlier (its residual beyond 2.5 times the fit's noise
+    /// estimate); null without a fit.
+    pub weight: Option<f64>,
+}
+
 /// One photo's view.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct CalibrationViewDto {
@@ -127,6 +148,9 @@ pub struct CalibrationViewDto {
     pub dropped: Option<String>,
     /// The reason in words; null when used.
     pub detail: Option<String>,
+    /// Its calibration points, as many as `points`, in the order measured: each with its
+    /// residual and weight when the view has a fit.
+    pub image_points: Vec<CalibrationPointDto>,
 }
 
 /// Something the photos leave poorly constrained (docs/calibration.md).
@@ -257,6 +281,25 @@ fn view_dto(photo: &PhotoReport, views: &[ViewReport]) -> CalibrationViewDto {
             )),
         ),
     };
+    let image_points = match fit {
+        Some(f) => f
+            .points()
+            .map(|p| CalibrationPointDto {
+                image_px: [p.measured_px.u(), p.measured_px.v()],
+                residual_px: Some([p.residual_px.x, p.residual_px.y]),
+                weight: Some(p.weight),
+            })
+            .collect(),
+        None => photo
+            .points
+            .iter()
+            .map(|p| CalibrationPointDto {
+                image_px: [p.pixel_px.u(), p.pixel_px.v()],
+                residual_px: None,
+                weight: None,
+            })
+            .collect(),
+    };
     CalibrationViewDto {
         index: photo.index,
         used: view.is_some_and(ViewReport::is_used),
@@ -267,6 +310,7 @@ fn view_dto(photo: &PhotoReport, views: &[ViewReport]) -> CalibrationViewDto {
         payload: photo.payload.clone(),
         dropped,
         detail,
+        image_points,
     }
 }
 

@@ -1,9 +1,10 @@
 //! `POST /v1/calibrate`: rendered photos of a printed code with a known camera give that
 //! camera, with the names of the spec (camera, std, reprojection_rms_px, views, warnings,
-//! opencv_yaml, ros_camera_info_yaml) and files the site's reader takes as they are; and
-//! every refusal as its problem: too few photos or usable views, too many photos, photos of
-//! different sizes, no code anywhere, an undecodable photo, a missing or unknown part, an
-//! unknown lens model, a body that is not multipart.
+//! opencv_yaml, ros_camera_info_yaml), every view's points with their residuals, and files
+//! the site's reader takes as they are; and every refusal as its problem: too few photos or
+//! usable views, too many photos, photos of different sizes, no code anywhere, an
+//! undecodable photo, a missing or unknown part, an unknown lens model, a body that is not
+//! multipart.
 
 #[path = "../support/calibration.rs"]
 mod photos;
@@ -55,6 +56,36 @@ async fn post(app: &TestApp, body: Vec<u8>) -> Response {
         .expect("the server answers")
 }
 
+/// A used view's `image_points`: one per point, inside the image, each with its residual
+/// and weight, the residuals' RMS length the view's `rms_px`.
+fn assert_points_drawable(view: &Value, (width, height): (f64, f64)) {
+    let points = view["image_points"].as_array().expect("image_points");
+    assert_eq!(Some(points.len() as u64), view["points"].as_u64(), "{view}");
+    let pair = |p: &Value| -> [f64; 2] {
+        let xy = p.as_array().expect("a pair");
+        assert_eq!(xy.len(), 2, "{p}");
+        [xy[0].as_f64().expect("u"), xy[1].as_f64().expect("v")]
+    };
+    let mut squares = 0.0;
+    for point in points {
+        let [u, v] = pair(&point["image_px"]);
+        assert!(
+            (-0.5..width).contains(&u) && (-0.5..height).contains(&v),
+            "{point}"
+        );
+        let [du, dv] = pair(&point["residual_px"]);
+        squares += du * du + dv * dv;
+        let weight = point["weight"].as_f64().expect("a weight");
+        assert!(weight > 0.0 && weight <= 1.0, "{point}");
+    }
+    let rms = (squares / points.len() as f64).sqrt();
+    let reported = view["rms_px"].as_f64().expect("rms_px");
+    assert!(
+        (rms - reported).abs() < 1e-9 * reported.max(1.0),
+        "{rms} against {reported}"
+    );
+}
+
 #[tokio::test]
 async fn photos_of_a_printed_code_give_its_camera() {
     let app = spawn_app().await;
@@ -92,6 +123,7 @@ async fn photos_of_a_printed_code_give_its_camera() {
         assert_eq!(v["used"], true, "{v}");
         assert!(v["points"].as_u64().is_some_and(|n| n > 100), "{v}");
         assert!(v["rms_px"].as_f64().is_some_and(|r| r < 0.3), "{v}");
+        assert_points_drawable(v, (640.0, 480.0));
     }
     assert!(body["warnings"].is_array());
     assert_eq!(body["image"], json!({"width_px": 640, "height_px": 480}));

@@ -19,7 +19,7 @@ use crate::result::{
 use crate::robust::median;
 use crate::warnings::{Coverage, Evidence, warnings};
 use nalgebra::{Matrix3, Vector2};
-use qrpose_core::geometry::frames::MarkerToCamera;
+use qrpose_core::geometry::frames::{MarkerToCamera, PixelPoint};
 
 /// A view is dropped when its median residual exceeds this multiple of the views' median
 /// (and [`DROP_FLOOR_PX`]): three times the typical view is no longer noise.
@@ -135,7 +135,8 @@ fn view_fits(fit: &Fit, views: &[ViewData]) -> Result<Vec<ViewFit>, SolveFailure
     residuals
         .into_iter()
         .zip(&fit.state.poses)
-        .map(|(residuals_px, pose)| {
+        .zip(views)
+        .map(|((residuals_px, pose), view)| {
             let lengths: Vec<f64> = residuals_px.iter().map(Vector2::norm).collect();
             let n = lengths.len() as f64;
             let rms_px = (lengths.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
@@ -144,6 +145,11 @@ fn view_fits(fit: &Fit, views: &[ViewData]) -> Result<Vec<ViewFit>, SolveFailure
                 pose: MarkerToCamera::new(pose.r, pose.t_mm),
                 rms_px,
                 median_px,
+                measured_px: view
+                    .pixel_px
+                    .iter()
+                    .map(|p| PixelPoint::new(p.x, p.y))
+                    .collect(),
                 weights: lengths.iter().map(|e| fit.loss.weight(*e)).collect(),
                 residuals_px,
             })
@@ -246,4 +252,106 @@ fn assemble(
         robust_sigma_px: fit.sigma_px,
         iterations: fit.iterations,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::input::Correspondence;
+    use crate::result::PointFit;
+    use nalgebra::{Point3, Rotation3, Vector3};
+    use qrpose_core::geometry::camera::{Camera, Distortion, DistortionModel};
+    use qrpose_core::geometry::frames::MarkerPoint;
+
+    /// The point of the first view made a gross outlier, and by how much, px.
+    const OUTLIER: usize = 27;
+    const OUTLIER_PX: f64 = 6.0;
+
+    fn truth() -> Camera {
+        let lens = Distortion::from_coefficients(
+            DistortionModel::PlumbBob,
+            &[-0.15, 0.04, 0.0008, -0.0004, 0.0],
+        )
+        .expect("a lens");
+        Camera::from_pixels(820.0, 815.0, 331.0, 242.0)
+            .expect("a camera")
+            .with_distortion(lens)
+    }
+
+    /// Six tilted views of an 8 × 8 grid of 12 mm pitch, with a deterministic ±0.1 px
+    /// wobble on every point and one gross outlier in view 0.
+    fn views(camera: &Camera) -> Vec<View> {
+        [
+            (0.4, -0.2),
+            (-0.45, 0.15),
+            (0.1, 0.5),
+            (-0.25, -0.4),
+            (0.35, 0.3),
+            (-0.1, -0.5),
+        ]
+        .iter()
+        .enumerate()
+        .map(|(k, &(ax, ay))| {
+            let pose = MarkerToCamera::new(
+                Rotation3::from_euler_angles(ax, ay, 0.3 * k as f64),
+                Vector3::new(-42.0, -40.0, 380.0 + 15.0 * k as f64),
+            );
+            let points = (0..64)
+                .map(|i| {
+                    let (x, y) = (f64::from(i % 8) * 12.0, f64::from(i / 8) * 12.0);
+                    let target = MarkerPoint(Point3::new(x, y, 0.0));
+                    let seen = camera.project(&pose.transform(&target)).expect("in front");
+                    let phase = f64::from(i) * 1.7 + k as f64;
+                    let mut u = seen.u() + 0.1 * phase.sin();
+                    if k == 0 && i as usize == OUTLIER {
+                        u += OUTLIER_PX;
+                    }
+                    Correspondence::new(x, y, u, seen.v() + 0.1 * phase.cos())
+                })
+                .collect();
+            View { points }
+        })
+        .collect()
+    }
+
+    #[test]
+    fn each_points_residual_is_its_reprojection_minus_its_measurement() {
+        let given = views(&truth());
+        let result =
+            calibrate(&given, ImageSize::new(660, 480), &Options::default()).expect("calibrates");
+        assert_eq!(result.used_views().count(), given.len());
+        for (report, view) in result.views.iter().zip(&given) {
+            let fit = report.fit().expect("used");
+            let points: Vec<_> = fit.points().collect();
+            assert_eq!(points.len(), view.points.len());
+            for (point, c) in points.iter().zip(&view.points) {
+                assert_eq!(point.measured_px, c.pixel_px);
+                let target = MarkerPoint(Point3::new(c.target_mm.x, c.target_mm.y, 0.0));
+                let projected = result
+                    .camera
+                    .project(&fit.pose.transform(&target))
+                    .expect("in front");
+                let expected = projected.0 - c.pixel_px.0;
+                assert!(
+                    (point.residual_px - expected).norm() < 1e-9,
+                    "view {}: {} against {expected}",
+                    report.index,
+                    point.residual_px
+                );
+                assert!((point.projected_px().0 - projected.0).norm() < 1e-9);
+            }
+        }
+        // The outlier is down-weighted and pulls back by most of its offset; the wobble is not.
+        let first: Vec<_> = result.views[0].fit().expect("used").points().collect();
+        let outlier = first[OUTLIER];
+        assert!(!outlier.is_inlier() && outlier.weight < 0.2, "{outlier:?}");
+        assert!(outlier.residual_px.x < -0.8 * OUTLIER_PX, "{outlier:?}");
+        let inliers = result
+            .views
+            .iter()
+            .flat_map(|v| v.fit().expect("used").points())
+            .filter(PointFit::is_inlier)
+            .count();
+        assert!(inliers + 20 > 6 * 64, "{inliers} inliers");
+    }
 }

@@ -5,9 +5,10 @@
 //! the plane z = 0 and its measured pixel), the image size and [`Options`] (the lens model:
 //! `plumb_bob`, `rational_polynomial` or `equidistant`, exactly as qrpose-core implements
 //! them), and returns a [`CameraCalibration`]: qrpose-core's [`Camera`] (fx, fy, cx, cy and
-//! the lens), one standard deviation per parameter, every view's pose and residuals (or why
-//! it was dropped), the reprojection RMS and [`Warning`]s. The method is Zhang's (Z. Zhang,
-//! "A flexible new technique for camera calibration", IEEE TPAMI 22(11), 2000):
+//! the lens), one standard deviation per parameter, every view's pose and every point's
+//! measurement, residual and robust weight ([`PointFit`]; or why the view was dropped),
+//! the reprojection RMS and [`Warning`]s. The method is Zhang's (Z. Zhang, "A flexible
+//! new technique for camera calibration", IEEE TPAMI 22(11), 2000):
 //!
 //! | module | owns |
 //! |---|---|
@@ -55,7 +56,9 @@ pub use input::{
     Correspondence, DEFAULT_MAX_ITERATIONS, ImageSize, MIN_POINTS_PER_VIEW, MIN_VIEWS, Options,
     View,
 };
-pub use result::{CameraCalibration, DropReason, ParameterStd, ViewFit, ViewOutcome, ViewReport};
+pub use result::{
+    CameraCalibration, DropReason, ParameterStd, PointFit, ViewFit, ViewOutcome, ViewReport,
+};
 pub use robust::{HUBER_K, SCALE_FLOOR_PX};
 pub use warnings::{Coverage, ImageCorner, Warning};
 pub use zhang::ClosedFormAssumption;

@@ -6,7 +6,7 @@ use crate::input::ImageSize;
 use crate::warnings::{Coverage, Warning};
 use nalgebra::{Vector2, Vector3};
 use qrpose_core::geometry::camera::Camera;
-use qrpose_core::geometry::frames::MarkerToCamera;
+use qrpose_core::geometry::frames::{MarkerToCamera, PixelPoint};
 
 /// A calibrated camera and how well the data determine it.
 #[derive(Debug, Clone, PartialEq)]
@@ -168,13 +168,56 @@ pub struct ViewFit {
     pub rms_px: f64,
     /// Median of its residual lengths, px.
     pub median_px: f64,
+    /// Each point's measured pixel, px, in the view's order (the view's `pixel_px`).
+    pub measured_px: Vec<PixelPoint>,
     /// Each point's residual, projected minus measured, px, in the view's order.
     pub residuals_px: Vec<Vector2<f64>>,
     /// Each point's robust weight in (0, 1] (1: a full inlier), in the view's order.
     pub weights: Vec<f64>,
 }
 
+/// One point of a view under a fit: where it was measured, how far the fitted camera and
+/// pose put it from there, and how much the robust loss let it count.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointFit {
+    /// Where it was measured, px.
+    pub measured_px: PixelPoint,
+    /// Its residual: the target point projected by the fitted camera and the view's pose,
+    /// minus `measured_px`, px.
+    pub residual_px: Vector2<f64>,
+    /// Its robust weight in (0, 1]: 1 while the residual is within Huber's threshold
+    /// ([`crate::HUBER_K`] times the fit's noise estimate), threshold / length beyond it.
+    pub weight: f64,
+}
+
+impl PointFit {
+    /// Where the fit puts it: `measured_px + residual_px`, px.
+    #[must_use]
+    pub fn projected_px(&self) -> PixelPoint {
+        PixelPoint(self.measured_px.0 + self.residual_px)
+    }
+
+    /// Whether it counted fully (weight 1): not down-weighted as an outlier.
+    #[must_use]
+    pub fn is_inlier(&self) -> bool {
+        self.weight >= 1.0
+    }
+}
+
 impl ViewFit {
+    /// Each point's measurement, residual and weight, in the view's order.
+    pub fn points(&self) -> impl ExactSizeIterator<Item = PointFit> + '_ {
+        self.measured_px
+            .iter()
+            .zip(&self.residuals_px)
+            .zip(&self.weights)
+            .map(|((measured_px, residual_px), weight)| PointFit {
+                measured_px: *measured_px,
+                residual_px: *residual_px,
+                weight: *weight,
+            })
+    }
+
     /// The pose's rotation as a rotation vector (axis × angle), rad.
     #[must_use]
     pub fn rotation_vector_rad(&self) -> Vector3<f64> {
