@@ -228,6 +228,7 @@ async fn health_probes_the_page_and_the_documents_stay_open() {
         "/",
         "/page/app.js",
         "/page/camera.js",
+        "/page/calibrate.js",
         "/page/app.css",
         "/docs/",
         "/openapi.json",

@@ -1,5 +1,5 @@
 //! `GET /`: the setup page for integrators (README, Setup page), and its scripts and style
-//! sheet. All four are compiled into the binary from `assets/page/`; the page fetches
+//! sheet. All five are compiled into the binary from `assets/page/`; the page fetches
 //! nothing but these and the API of the same server (its live camera mode opens the
 //! WebSocket `GET /v1/stream` of the same host and port), which its Content-Security-Policy
 //! enforces, so it works on a machine without network.
@@ -16,12 +16,15 @@ pub const PAGE_PATH: &str = "/";
 pub const SCRIPT_PATH: &str = "/page/app.js";
 /// The live camera mode's script (streams the browser's camera to `GET /v1/stream`).
 pub const CAMERA_SCRIPT_PATH: &str = "/page/camera.js";
+/// The calibration tab's script (sends photos to `POST /v1/calibrate`, shows the answer).
+pub const CALIBRATE_SCRIPT_PATH: &str = "/page/calibrate.js";
 /// The style sheet's path.
 pub const STYLE_PATH: &str = "/page/app.css";
 
 const PAGE_HTML: &str = include_str!("../../../assets/page/index.html");
 const SCRIPT_JS: &str = include_str!("../../../assets/page/app.js");
 const CAMERA_SCRIPT_JS: &str = include_str!("../../../assets/page/camera.js");
+const CALIBRATE_SCRIPT_JS: &str = include_str!("../../../assets/page/calibrate.js");
 const STYLE_CSS: &str = include_str!("../../../assets/page/app.css");
 
 /// Same-origin only: the page, its scripts and style, the API; photos are drawn from a
@@ -52,7 +55,9 @@ fn asset(media_type: &'static str, body: &'static str) -> impl IntoResponse {
 /// marker size, and see each code's corners, outline, payload and axes drawn on the photo,
 /// with its position, distance, angles, error bars, ambiguity and warnings, the time per
 /// stage, the raw JSON of `POST /v1/pose/image` and a `curl` command that repeats the
-/// request. Served from the binary; it loads nothing from elsewhere.
+/// request. Its calibration tab sends photos of a printed code to `POST /v1/calibrate` and
+/// shows the camera, each view's points and residuals, the image's coverage and the files
+/// to download. Served from the binary; it loads nothing from elsewhere.
 #[utoipa::path(
     get,
     path = "/",
@@ -76,6 +81,10 @@ async fn camera_script() -> impl IntoResponse {
     asset("text/javascript; charset=utf-8", CAMERA_SCRIPT_JS)
 }
 
+async fn calibrate_script() -> impl IntoResponse {
+    asset("text/javascript; charset=utf-8", CALIBRATE_SCRIPT_JS)
+}
+
 async fn style() -> impl IntoResponse {
     asset("text/css; charset=utf-8", STYLE_CSS)
 }
@@ -85,5 +94,6 @@ pub fn assets() -> Router<AppState> {
     Router::new()
         .route(SCRIPT_PATH, get(script))
         .route(CAMERA_SCRIPT_PATH, get(camera_script))
+        .route(CALIBRATE_SCRIPT_PATH, get(calibrate_script))
         .route(STYLE_PATH, get(style))
 }
