@@ -1,9 +1,10 @@
 //! The tracker on simulated sequences: wrong poses, jitter, lag and NEES against single
 //! frames.
 //!
-//! `cargo run --release -p qrpose-track --example track_study [-- SEQUENCES [ACCEL_PSD ANGULAR_PSD [VELOCITY_SIGMA ANGULAR_VELOCITY_SIGMA [STEADY_FACTOR]]]]`
+//! `cargo run --release -p qrpose-track --example track_study [-- SEQUENCES [ACCEL_PSD ANGULAR_PSD [VELOCITY_SIGMA ANGULAR_VELOCITY_SIGMA [STEADY_FACTOR [CORNER_SIGMA_PX [MODE_HOLD_MS]]]]]]`
 //!
-//! A 50 mm code, 1280×720 camera with fx = 1000 px, corner noise σ = 0.5 px (seeded),
+//! A 50 mm code, 1280×720 camera with fx = 1000 px, corner noise σ = 0.5 px (seeded; or
+//! CORNER_SIGMA_PX, the σ the corners are noised with and fused at),
 //! 3 s at 30 fps per sequence, the code at 0.4-0.7, 0.7-1.1 and 1.1-1.5 m and:
 //! `still` (tilt up to 60°), `moving` (a robot's camera passing: ±10/5/20 % of the
 //! distance, ±8.6° about each axis, 0.1-0.2 Hz, base tilt up to 50°) or `swaying`
@@ -155,7 +156,11 @@ fn mean(v: &[f64]) -> f64 {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let sequences: u64 = args.first().map_or(Ok(60), |s| s.parse())?;
-    let mut params = qrpose_track::TrackerParams::default();
+    // The simulated corners err independently frame to frame: no shared bias.
+    let mut params = qrpose_track::TrackerParams {
+        frame_bias_share: 0.0,
+        ..qrpose_track::TrackerParams::default()
+    };
     if let (Some(a), Some(b)) = (args.get(1), args.get(2)) {
         params.accel_psd_mm2_s3 = a.parse()?;
         params.angular_accel_psd_rad2_s3 = b.parse()?;
@@ -167,11 +172,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(f) = args.get(5) {
         params.steady_noise_factor = f.parse()?;
     }
-    let scene = Scene::standard();
+    if let Some(ms) = args.get(7) {
+        params.mode_hold_ms = ms.parse()?;
+    }
+    let scene = match args.get(6) {
+        Some(s) => Scene::with_corner_sigma(s.parse()?),
+        None => Scene::standard(),
+    };
     println!(
-        "{sequences} sequences of {FRAMES} frames per band; q_a = {} mm²/s³, q_α = {} rad²/s³, initial σ_v = {} mm/s, σ_ω = {} rad/s",
+        "{sequences} sequences of {FRAMES} frames per band; corner σ = {} px; q_a = {} mm²/s³, q_α = {} rad²/s³, steady factor {}, mode hold {} ms, initial σ_v = {} mm/s, σ_ω = {} rad/s",
+        scene.sigma_px,
         params.accel_psd_mm2_s3,
         params.angular_accel_psd_rad2_s3,
+        params.steady_noise_factor,
+        params.mode_hold_ms,
         params.initial_velocity_sigma_mm_s,
         params.initial_angular_velocity_sigma_rad_s
     );

@@ -42,7 +42,7 @@
 //! from the reported one, so an unresolved ambiguity shows in the covariance.
 
 use crate::filter::{Eskf, ProcessNoise};
-use crate::imm::{Imm, ImmPosterior, MODES};
+use crate::imm::{Imm, ImmPosterior, MANOEUVRING, MODES};
 use crate::measurement::{Measurement, PoseCandidate};
 use crate::params::TrackerParams;
 use crate::so3::angle_between;
@@ -170,7 +170,7 @@ impl Branches {
 
     /// The probability of the manoeuvring model in the reported hypothesis.
     pub fn manoeuvre_probability(&self) -> f64 {
-        self.hyps[self.reported_index()].imm.probs[1]
+        self.hyps[self.reported_index()].imm.probs[MANOEUVRING]
     }
 
     fn probabilities(&self) -> Vec<f64> {

@@ -155,6 +155,20 @@ impl Eskf {
         }
     }
 
+    /// Holds the code still: velocity and angular velocity set to zero, with no variance and
+    /// no correlation with the pose (the at-rest model of crate::imm; its prediction adds
+    /// the velocities' process noise back, so the covariance stays positive definite).
+    pub fn hold_still(&mut self) {
+        self.velocity_mm_s = Vector3::zeros();
+        self.angular_velocity_rad_s = Vector3::zeros();
+        for i in 6..12 {
+            for j in 0..12 {
+                self.covariance[(i, j)] = 0.0;
+                self.covariance[(j, i)] = 0.0;
+            }
+        }
+    }
+
     /// The state at error δ from this one: R = Exp(δθ)·R̂, c = ĉ + δc, v = v̂ + δv,
     /// ω = ω̂ + δω (covariance unchanged).
     pub fn plus(&self, d: &SMatrix<f64, 12, 1>) -> Self {

@@ -1,14 +1,26 @@
-//! Two motion models per hypothesis, interacting: a steady one (at rest, or at a constant
-//! velocity: small process noise) and a manoeuvring one (large), each a constant-velocity
+//! Three motion models per hypothesis, interacting: **at rest** (the code does not move in
+//! the camera: velocities held at zero, the pose a slow random walk), **steady** (a constant
+//! velocity: small process noise) and **manoeuvring** (large), each a constant-velocity
 //! filter ([`crate::filter`]), combined by the interacting multiple model (IMM) estimator (H. A. P. Blom and
 //! Y. Bar-Shalom, "The interacting multiple model algorithm for systems with Markovian
 //! switching coefficients", IEEE TAC 33(8), 1988; Bar-Shalom, Li and Kirubarajan 2001,
 //! §11.6.6). A single process noise cannot both smooth a code at rest (which wants it
 //! small) and follow one whose motion changes (which wants it large); the IMM weighs the
-//! two by how well each predicts the corners.
+//! models by how well each predicts the corners. The at-rest model is the one a robot
+//! stopped at a shelf needs: a constant-velocity model, however small its noise, lets its
+//! velocity wander with the noise of a near code's corners (whose pose noise is a few
+//! hundredths of a millimetre), and the wandering velocity carries the pose with it.
+//!
+//! The at-rest model is the constant-velocity filter whose velocity and angular velocity
+//! (and their covariance) are reset to zero before each prediction, so the pose moves only
+//! by the process noise fed through one step's velocity (q·dt³/3 per axis).
 //!
 //! Per frame, with mode probabilities μ and a switch probability s = 1 − exp(−dt/τ)
-//! (τ = `mode_hold_ms`; π_ii = 1 − s, π_ij = s):
+//! (τ = `mode_hold_ms`), the models in a chain at rest ↔ steady ↔ manoeuvring (a code
+//! starts and stops moving through the steady model: a direct switch between rest and a
+//! manoeuvre left the manoeuvring model's covariance free to grow while the track coasted,
+//! until it passed an outlier): π_ii = 1 − s; from steady, s/2 to each other; from at rest
+//! or manoeuvring, s to steady:
 //!
 //! ```text
 //! mixing      c_j = Σ_i π_ij μ_i,  μ_i|j = π_ij μ_i / c_j,
@@ -25,8 +37,14 @@ use crate::measurement::Corners;
 use nalgebra::{Rotation3, SMatrix, Vector3};
 use qrpose_core::geometry::marker::Marker;
 
-/// The two modes: 0 steady (small process noise), 1 manoeuvring.
-pub(crate) const MODES: usize = 2;
+/// The three modes: [`AT_REST`], [`STEADY`], [`MANOEUVRING`].
+pub(crate) const MODES: usize = 3;
+/// The at-rest mode's index (velocities held at zero).
+pub(crate) const AT_REST: usize = 0;
+/// The steady mode's index (constant velocity, small process noise).
+pub(crate) const STEADY: usize = 1;
+/// The manoeuvring mode's index (constant velocity, large process noise).
+pub(crate) const MANOEUVRING: usize = 2;
 
 /// Two mode-conditioned filters and their probabilities.
 #[derive(Debug, Clone, PartialEq)]
@@ -61,15 +79,21 @@ fn moment_match(filters: &[&Eskf], weights: &[f64], reference: usize) -> Eskf {
 }
 
 fn argmax(p: &[f64; MODES]) -> usize {
-    usize::from(p[1] > p[0])
+    let mut best = 0;
+    for (i, x) in p.iter().enumerate() {
+        if *x > p[best] {
+            best = i;
+        }
+    }
+    best
 }
 
 impl Imm {
-    /// Both modes at one filter, equally probable.
+    /// Every mode at one filter, equally probable.
     pub fn new(filter: Eskf) -> Self {
         Self {
-            modes: [filter.clone(), filter],
-            probs: [0.5, 0.5],
+            modes: [filter.clone(), filter.clone(), filter],
+            probs: [1.0 / MODES as f64; MODES],
         }
     }
 
@@ -85,7 +109,12 @@ impl Imm {
             return;
         }
         let s = 1.0 - (-dt_s / hold_s).exp();
-        let pi = |i: usize, j: usize| if i == j { 1.0 - s } else { s };
+        let pi = |i: usize, j: usize| match (i, j) {
+            _ if i == j => 1.0 - s,
+            (STEADY, _) => s / 2.0,
+            (_, STEADY) => s,
+            _ => 0.0,
+        };
         let filters: Vec<&Eskf> = self.modes.iter().collect();
         let mut mixed = self.modes.clone();
         let mut c = [0.0; MODES];
@@ -96,6 +125,7 @@ impl Imm {
                 .collect();
             mixed[j] = moment_match(&filters, &w, j);
         }
+        mixed[AT_REST].hold_still();
         for j in 0..MODES {
             self.modes[j] = mixed[j].predicted(dt_s, &noises[j]);
         }

@@ -3,10 +3,10 @@
 //! Each code becomes a track with a stable id ("t1", "t2", … in order of creation),
 //! associated frame to frame by payload and by position. Its state is the pose (rotation and
 //! marker centre) and velocity (linear and angular) with covariance, estimated by an
-//! error-state Kalman filter on SO(3) × ℝ³ with two interacting constant-velocity models
-//! (steady and manoeuvring); the measurement is the code's four corners with the corner
-//! noise the per-frame solver assumed (whose pose covariance σ²·(JᵀJ)⁻¹ is the same
-//! information to first order). The planar ambiguity of single frames is resolved by the
+//! error-state Kalman filter on SO(3) × ℝ³ with three interacting motion models (at rest,
+//! steady and manoeuvring); the measurement is the code's four corners with the corner
+//! noise the caller states (whose pose covariance σ²·(JᵀJ)⁻¹ is the same information to
+//! first order). The planar ambiguity of single frames is resolved by the
 //! track's history: up to two branch hypotheses per track, weighed by how well each
 //! predicts the frames, the lighter dropped once negligible. The crate README has the
 //! model, the parameters, the guarantees measured on simulated sequences, and what a client
@@ -16,7 +16,7 @@
 //! |---|---|
 //! | [`so3`] | exponential and logarithm maps, left Jacobian |
 //! | `filter` | the error-state Kalman filter of one motion model: prediction, update |
-//! | `imm` | the two motion models (steady, manoeuvring) of one hypothesis, interacting |
+//! | `imm` | the three motion models (at rest, steady, manoeuvring) of one hypothesis, interacting |
 //! | `branches` | the planar-branch hypotheses of one track: choice, weights, merge, prune |
 //! | `track` | one track: timing, status, restart |
 //! | `tracker` | association, the per-frame cycle ([`Tracker::update`]) |

@@ -12,6 +12,7 @@
 //! σ²·(JᵀJ)⁻¹ at the alternative (the same formula qrpose-core applies to the best pose:
 //! `crates/qrpose-core/src/estimate/refine.rs`).
 
+use crate::params::TrackerParams;
 use crate::so3::skew;
 use nalgebra::{Matrix3, Matrix6, Rotation3, SMatrix, Vector2, Vector3};
 use qrpose_core::estimate::PoseEstimate;
@@ -89,6 +90,9 @@ pub struct Measurement {
     pub(crate) best: PoseCandidate,
     pub(crate) alternative: Option<Alternative>,
     pub(crate) ambiguous: bool,
+    /// The best pose's covariance at `corners`' noise (the estimate's own covariance is at
+    /// the solver's `corner_sigma_px`, which may differ).
+    pub(crate) best_at_corner_sigma: Matrix6<f64>,
 }
 
 fn check_candidate(c: &PoseCandidate) -> Result<(), MeasurementError> {
@@ -106,6 +110,13 @@ fn check_candidate(c: &PoseCandidate) -> Result<(), MeasurementError> {
 }
 
 impl Measurement {
+    /// The share of the frame's own pose covariance that frames share: its best pose's
+    /// σ²·(JᵀJ)⁻¹ at the corner noise it is fused with, × `measurement_inflation` ×
+    /// `frame_bias_share`.
+    pub(crate) fn frame_covariance(&self, params: &TrackerParams) -> Matrix6<f64> {
+        self.best_at_corner_sigma * (params.measurement_inflation * params.frame_bias_share)
+    }
+
     /// A measurement of `marker` from its validated corners `quad` seen by `camera`, the
     /// `reprojection` estimate made from them, and the corner noise `corner_sigma_px` the
     /// estimate assumed (the solver's `corner_sigma_px`). The alternative pose is kept when
@@ -170,6 +181,14 @@ impl Measurement {
             _ => None,
         };
         check_candidate(&best)?;
+        let best_at_corner_sigma = pose_covariance(
+            marker,
+            &best.rotation,
+            &best.centre_mm,
+            camera,
+            corner_sigma_px,
+        )
+        .ok_or(MeasurementError::NotPositiveDefinite)?;
         if let Some(a) = &alternative {
             check_candidate(&a.pose)?;
             if !a.probability.is_finite() {
@@ -189,6 +208,7 @@ impl Measurement {
             best,
             alternative,
             ambiguous: d.ambiguity.is_some_and(|a| a.ambiguous),
+            best_at_corner_sigma,
         })
     }
 

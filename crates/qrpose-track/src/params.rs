@@ -26,8 +26,9 @@ pub struct TrackerParams {
     /// Spectral density q_α of the white angular acceleration in the manoeuvring model,
     /// rad²/s³, per camera axis. Default 1 (1 rad/s = 57°/s after one second).
     pub angular_accel_psd_rad2_s3: f64,
-    /// The steady model (at rest, or at a constant velocity) has `steady_noise_factor` ×
-    /// both densities. Range (0, 1], default 0.01.
+    /// The steady model (a constant velocity) has `steady_noise_factor` × both densities,
+    /// the at-rest model (velocities held at zero) `steady_noise_factor`² × (crate::imm).
+    /// Range (0, 1], default 0.01.
     pub steady_noise_factor: f64,
     /// Mean time the motion stays in one model (steady, or manoeuvring), ms: the switch
     /// probability over dt is 1 − exp(−dt / mode_hold_ms). Default 500.
@@ -37,6 +38,14 @@ pub struct TrackerParams {
     /// σ²·(JᵀJ)⁻¹ of the same corners. 1 when the stated corner noise is right; default 1,
     /// range (0, 10⁴].
     pub measurement_inflation: f64,
+    /// The share of a frame's pose covariance that is an error consecutive frames share (a
+    /// bias of the scene: blur, print, lens), which fusing frames does not average away:
+    /// the reported covariance is the filter's plus this share of the latest fused frame's
+    /// covariance (crate::track). 0 when each frame's corners err independently (simulated
+    /// corners); default 1, for corners found in camera images, whose error on the rendered
+    /// videos is almost all shared (a still camera's corners move by about a sixth of
+    /// their error from the truth; docs/stream.md). Range [0, 1].
+    pub frame_bias_share: f64,
     /// A measurement whose four corners have a squared Mahalanobis distance from the
     /// prediction (J at the update's optimum, 8 degrees of freedom) above this is not
     /// fused. Default [`CHI2_8DOF_999`].
@@ -89,6 +98,7 @@ impl Default for TrackerParams {
             steady_noise_factor: 0.01,
             mode_hold_ms: 500.0,
             measurement_inflation: 1.0,
+            frame_bias_share: 1.0,
             gate_chi2: CHI2_8DOF_999,
             association_gate_chi2: CHI2_3DOF_999,
             association_distance_mm: 150.0,
@@ -115,6 +125,7 @@ pub enum Param {
     SteadyNoiseFactor,
     ModeHoldMs,
     MeasurementInflation,
+    FrameBiasShare,
     GateChi2,
     AssociationGateChi2,
     AssociationDistance,
@@ -139,6 +150,7 @@ impl Param {
             Param::SteadyNoiseFactor => "steady_noise_factor",
             Param::ModeHoldMs => "mode_hold_ms",
             Param::MeasurementInflation => "measurement_inflation",
+            Param::FrameBiasShare => "frame_bias_share",
             Param::GateChi2 => "gate_chi2",
             Param::AssociationGateChi2 => "association_gate_chi2",
             Param::AssociationDistance => "association_distance_mm",
@@ -164,19 +176,25 @@ impl fmt::Display for Param {
 
 /// A parameter outside its range.
 #[derive(Debug, Clone, Copy, PartialEq, Error)]
-#[error("tracker parameter {param} = {value} is outside ({min_exclusive}, {max}]")]
+#[error(
+    "tracker parameter {param} = {value} is outside {}{min}, {max}]",
+    if *min_included { "[" } else { "(" }
+)]
 pub struct ParamError {
     /// The parameter.
     pub param: Param,
     /// The value given (integers converted).
     pub value: f64,
-    /// Values must be greater than this.
-    pub min_exclusive: f64,
+    /// Values must be greater than this (or equal, when `min_included`).
+    pub min: f64,
+    /// Whether `min` itself is allowed.
+    pub min_included: bool,
     /// Values must be at most this.
     pub max: f64,
 }
 
-/// The range (min exclusive, max inclusive) of each real parameter.
+/// The range (min exclusive, max inclusive) of each real parameter but
+/// [`Param::FrameBiasShare`], whose range is [0, 1].
 const RANGES: [(Param, f64, f64); 15] = [
     (Param::AccelPsd, 0.0, 1e12),
     (Param::AngularAccelPsd, 0.0, 1e6),
@@ -206,6 +224,7 @@ impl TrackerParams {
             Param::SteadyNoiseFactor => self.steady_noise_factor,
             Param::ModeHoldMs => self.mode_hold_ms,
             Param::MeasurementInflation => self.measurement_inflation,
+            Param::FrameBiasShare => self.frame_bias_share,
             Param::GateChi2 => self.gate_chi2,
             Param::AssociationGateChi2 => self.association_gate_chi2,
             Param::AssociationDistance => self.association_distance_mm,
@@ -230,16 +249,26 @@ impl TrackerParams {
     /// counts `max_tracks`, `confirm_frames` and `restart_after_gated` must be in
     /// 1..=[`MAX_COUNT`].
     pub fn validate(&self) -> Result<(), ParamError> {
-        for (param, min_exclusive, max) in RANGES {
+        for (param, min, max) in RANGES {
             let value = self.real(param);
-            if !(value.is_finite() && value > min_exclusive && value <= max) {
+            if !(value.is_finite() && value > min && value <= max) {
                 return Err(ParamError {
                     param,
                     value,
-                    min_exclusive,
+                    min,
+                    min_included: false,
                     max,
                 });
             }
+        }
+        if !(0.0..=1.0).contains(&self.frame_bias_share) {
+            return Err(ParamError {
+                param: Param::FrameBiasShare,
+                value: self.frame_bias_share,
+                min: 0.0,
+                min_included: true,
+                max: 1.0,
+            });
         }
         for param in [
             Param::MaxTracks,
@@ -251,7 +280,8 @@ impl TrackerParams {
                 return Err(ParamError {
                     param,
                     value,
-                    min_exclusive: 0.0,
+                    min: 1.0,
+                    min_included: true,
                     max: f64::from(MAX_COUNT),
                 });
             }

@@ -47,6 +47,16 @@ impl PredictedRegion {
             max(vs) + margin,
         ]
     }
+
+    /// Whether every predicted corner lies inside an image of `width_px` × `height_px`
+    /// (pixel centres at integer coordinates, so inside is [-0.5, width − 0.5]). A code
+    /// predicted partly outside cannot be read in this frame, by its crop or by a search of
+    /// the whole frame.
+    pub fn predicted_inside(&self, width_px: f64, height_px: f64) -> bool {
+        self.corners_px.iter().all(|p| {
+            (-0.5..=width_px - 0.5).contains(&p.u()) && (-0.5..=height_px - 0.5).contains(&p.v())
+        })
+    }
 }
 
 /// The largest eigenvalue of a symmetric 2×2 matrix [[a, b], [b, c]].
@@ -115,5 +125,31 @@ impl Tracker {
             });
         }
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn region(corners: [(f64, f64); 4]) -> PredictedRegion {
+        PredictedRegion {
+            track_id: "t1".to_owned(),
+            payload: "A".to_owned(),
+            corners_px: corners.map(|(u, v)| PixelPoint::new(u, v)),
+            corner_sigma_px: 2.0,
+            confident: false,
+        }
+    }
+
+    #[test]
+    fn a_region_is_inside_only_when_all_four_corners_are() {
+        let inside = region([(10.0, 10.0), (50.0, 10.0), (50.0, 50.0), (10.0, 50.0)]);
+        assert!(inside.predicted_inside(640.0, 480.0));
+        let left = region([(-20.0, 10.0), (30.0, 10.0), (30.0, 50.0), (-20.0, 50.0)]);
+        assert!(!left.predicted_inside(640.0, 480.0));
+        let bottom = region([(10.0, 450.0), (50.0, 450.0), (50.0, 480.0), (10.0, 480.0)]);
+        assert!(!bottom.predicted_inside(640.0, 480.0));
+        assert!(bottom.predicted_inside(640.0, 481.0));
     }
 }

@@ -7,14 +7,20 @@
 //! fused or the track restarted), `coasting` (otherwise), `lost` when t − last update >
 //! `coast_ms` or the predicted centre's largest standard deviation exceeds
 //! `max_position_sigma_mm` (checked only for tracks not updated by the frame).
+//!
+//! The reported covariance is the filter's plus `frame_bias_share` × the latest fused
+//! frame's own pose covariance: a frame's corner error is mostly a bias of the scene
+//! (blur, print, the lens), the same in the next frame of a camera that has not moved,
+//! which averaging frames does not remove. The filter's covariance shrinks with every frame
+//! fused; the pose error of a still camera does not (docs/stream.md, Covariance).
 
 use crate::branches::Branches;
 use crate::filter::ProcessNoise;
-use crate::imm::MODES;
+use crate::imm::{AT_REST, MODES, STEADY};
 use crate::measurement::Measurement;
 use crate::params::TrackerParams;
 use crate::report::{FilteredPose, Outcome, TrackReport, TrackStatus};
-use nalgebra::Vector3;
+use nalgebra::{Matrix6, Vector3};
 use qrpose_core::geometry::marker::Marker;
 
 /// A track.
@@ -32,6 +38,10 @@ pub(crate) struct Track {
     /// Some fused frame was ambiguous alone, or the track took an alternative.
     pub history_decided: bool,
     pub status: TrackStatus,
+    /// The latest fused frame's pose covariance (× `measurement_inflation` ×
+    /// `frame_bias_share`): the error frames share, added to the reported covariance
+    /// (module docs).
+    pub frame_covariance: Matrix6<f64>,
 }
 
 /// The result of giving a track a measurement.
@@ -42,18 +52,22 @@ pub(crate) struct TrackFuse {
     pub d2: Option<f64>,
 }
 
-/// The process noise of the two models: steady (`steady_noise_factor` × the densities)
-/// and manoeuvring.
+/// The process noise of the three models (crate::imm): at rest (`steady_noise_factor`² ×
+/// the densities), steady (`steady_noise_factor` ×) and manoeuvring.
 pub(crate) fn noise_of(params: &TrackerParams) -> [ProcessNoise; MODES] {
     let manoeuvring = ProcessNoise {
         accel_psd: params.accel_psd_mm2_s3,
         angular_accel_psd: params.angular_accel_psd_rad2_s3,
     };
-    let steady = ProcessNoise {
-        accel_psd: manoeuvring.accel_psd * params.steady_noise_factor,
-        angular_accel_psd: manoeuvring.angular_accel_psd * params.steady_noise_factor,
+    let scaled = |factor: f64| ProcessNoise {
+        accel_psd: manoeuvring.accel_psd * factor,
+        angular_accel_psd: manoeuvring.angular_accel_psd * factor,
     };
-    [steady, manoeuvring]
+    let f = params.steady_noise_factor;
+    let mut noises = [manoeuvring; MODES];
+    noises[AT_REST] = scaled(f * f);
+    noises[STEADY] = scaled(f);
+    noises
 }
 
 impl Track {
@@ -76,6 +90,7 @@ impl Track {
             consecutive_gated: 0,
             history_decided: m.ambiguous,
             status: TrackStatus::New,
+            frame_covariance: m.frame_covariance(params),
         }
     }
 
@@ -119,6 +134,7 @@ impl Track {
         }
         self.consecutive_gated = 0;
         self.mark_updated(t_ms);
+        self.frame_covariance = m.frame_covariance(params);
         self.history_decided |= m.ambiguous || fused.picked_alternative;
         TrackFuse {
             outcome: Outcome::Fused,
@@ -152,6 +168,7 @@ impl Track {
         }
         self.branches = Branches::start(m, params);
         self.consecutive_gated = 0;
+        self.frame_covariance = m.frame_covariance(params);
         self.history_decided = m.ambiguous;
         self.mark_updated(t_ms);
         TrackFuse {
@@ -189,7 +206,7 @@ impl Track {
             pose: FilteredPose {
                 rotation: f.rotation,
                 centre_mm: f.centre_mm,
-                covariance: self.branches.mixture_pose_covariance(),
+                covariance: self.branches.mixture_pose_covariance() + self.frame_covariance,
                 velocity_mm_s: f.velocity_mm_s,
                 angular_velocity_rad_s: f.angular_velocity_rad_s,
             },

@@ -336,8 +336,11 @@ fn predicted_regions_hold_the_next_corners_in_qr_order_with_their_uncertainty() 
         ("t1", "A")
     );
     assert!(region.confident);
+    // The prediction mixes in the at-rest model (the code may stop: crate::imm), which
+    // lags a moving code by a frame's motion at its small probability: 3.1 px here, under
+    // 3 px (this test's bound then) with the two moving models alone.
     assert!(
-        region.corner_sigma_px > 0.0 && region.corner_sigma_px < 3.0,
+        region.corner_sigma_px > 0.0 && region.corner_sigma_px < 3.5,
         "{}",
         region.corner_sigma_px
     );

@@ -29,14 +29,23 @@ pub struct Scene {
     pub camera: Camera,
     pub marker: Marker,
     pub solver: ValidSolver,
+    /// The corner noise the estimates and the tracker are told, px.
     pub sigma_px: f64,
+    /// The standard deviation of the noise drawn for each corner of each frame, px.
+    pub white_sigma_px: f64,
+    /// An error added to every frame's corners (paper order), px: a bias the frames share.
+    pub bias_px: [[f64; 2]; 4],
     pub image_px: (f64, f64),
 }
 
 impl Scene {
     /// The standard scene of the tests.
     pub fn standard() -> Self {
-        let sigma_px = 0.5;
+        Self::with_corner_sigma(0.5)
+    }
+
+    /// The standard scene with corners noised (and fused) at `sigma_px`.
+    pub fn with_corner_sigma(sigma_px: f64) -> Self {
         Self {
             camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("camera"),
             marker: Marker::try_new(50.0).expect("marker"),
@@ -47,6 +56,8 @@ impl Scene {
             .validate()
             .expect("solver"),
             sigma_px,
+            white_sigma_px: sigma_px,
+            bias_px: [[0.0; 2]; 4],
             image_px: (1280.0, 720.0),
         }
     }
@@ -60,11 +71,15 @@ impl Scene {
         rng: &mut StdRng,
     ) -> Option<[PixelPoint; 4]> {
         let pose = self.marker.pose_centred_at(*rotation, *centre);
-        let noise = Normal::new(0.0, self.sigma_px).expect("sigma");
+        let noise = Normal::new(0.0, self.white_sigma_px).expect("sigma");
         let mut out = [PixelPoint::new(0.0, 0.0); 4];
         for (i, m) in self.marker.object_points().iter().enumerate() {
             let p = self.camera.project(&pose.transform(m))?;
-            let (u, v) = (p.u() + noise.sample(rng), p.v() + noise.sample(rng));
+            let [bu, bv] = self.bias_px[i];
+            let (u, v) = (
+                p.u() + bu + noise.sample(rng),
+                p.v() + bv + noise.sample(rng),
+            );
             if !(0.0..self.image_px.0).contains(&u) || !(0.0..self.image_px.1).contains(&v) {
                 return None;
             }
