@@ -42,9 +42,11 @@
 //! - **cost**: detection time of the frames searched in the tracks' regions, over the
 //!   full-frame detection of the same bytes; then over every frame with live tracks (those
 //!   whose whole frame is searched on the cadence, after a lost track or after a missed crop
-//!   read included): the session's time less its answer's decoding and poses (so detection,
-//!   a crop read that fell back to the whole frame, and the tracker's update) over the
-//!   photo's detection; and the whole frame's time, session over photo.
+//!   read included): the session's detection (`timing.detect_ms`, a crop read that fell
+//!   back to the whole frame counted with it) over the photo's detection; the session's
+//!   time less its answer's decoding and poses (detection and the tracker's update) over
+//!   the same; and the whole frame's time, session over photo. A last line counts the
+//!   frames with live tracks whose whole frame was searched, by reason.
 //!
 //! With more than one video, a last block, `all`, pools their code-frames.
 
@@ -105,9 +107,13 @@ struct Tally {
     region_detect_ms: f64,
     region_full_ms: f64,
     region_frames: usize,
+    /// Full-frame searches on frames with live tracks, by reason.
+    full_reasons: std::collections::BTreeMap<String, usize>,
     live_frames: usize,
     /// Session: wall time less the answer's decoding and poses, ms.
     live_session_detect_ms: f64,
+    /// Session: the answer's detection alone (`timing.detect_ms`), ms.
+    live_session_detection_only_ms: f64,
     /// Photo: detection, ms.
     live_single_detect_ms: f64,
     live_session_ms: f64,
@@ -139,8 +145,12 @@ impl Tally {
         self.region_detect_ms += o.region_detect_ms;
         self.region_full_ms += o.region_full_ms;
         self.region_frames += o.region_frames;
+        for (reason, n) in &o.full_reasons {
+            *self.full_reasons.entry(reason.clone()).or_default() += n;
+        }
         self.live_frames += o.live_frames;
         self.live_session_detect_ms += o.live_session_detect_ms;
+        self.live_session_detection_only_ms += o.live_session_detection_only_ms;
         self.live_single_detect_ms += o.live_single_detect_ms;
         self.live_session_ms += o.live_session_ms;
         self.live_single_ms += o.live_single_ms;
@@ -246,9 +256,13 @@ fn run(name: &str, max_frames: Option<u32>) -> Tally {
             tally.live_frames += 1;
             let timing = &answer.image.timing;
             tally.live_session_detect_ms += session_ms - timing.decode_ms - timing.estimate_ms;
+            tally.live_session_detection_only_ms += timing.detect_ms;
             tally.live_single_detect_ms += single.timing.detect_ms;
             tally.live_session_ms += session_ms;
             tally.live_single_ms += single_ms;
+            if let Search::Full(reason) = answer.search {
+                *tally.full_reasons.entry(format!("{reason:?}")).or_default() += 1;
+            }
         }
         live = answer.tracks.iter().any(|t| t.status != TrackStatus::Lost);
         if answer.search == Search::Regions {
@@ -433,18 +447,32 @@ fn report(name: &str, t: &Tally) {
         }
     }
     println!(
-        "cost: {} frames searched in regions: detection {:.2} ms / full-frame {:.2} ms = {:.2}; {} frames with live tracks: detection and tracking {:.2} ms / full-frame detection {:.2} ms = {:.2}, whole frame {:.2} ms / {:.2} ms = {:.2}",
+        "cost: {} frames searched in regions: detection {:.2} ms / full-frame {:.2} ms = {:.2}; {} frames with live tracks: detection {:.2} ms / full-frame detection {:.2} ms = {:.2}, detection and tracking {:.2} ms = {:.2}, whole frame {:.2} ms / {:.2} ms = {:.2}",
         t.region_frames,
         t.region_detect_ms / t.region_frames.max(1) as f64,
         t.region_full_ms / t.region_frames.max(1) as f64,
         t.region_detect_ms / t.region_full_ms.max(f64::MIN_POSITIVE),
         t.live_frames,
-        t.live_session_detect_ms / t.live_frames.max(1) as f64,
+        t.live_session_detection_only_ms / t.live_frames.max(1) as f64,
         t.live_single_detect_ms / t.live_frames.max(1) as f64,
+        t.live_session_detection_only_ms / t.live_single_detect_ms.max(f64::MIN_POSITIVE),
+        t.live_session_detect_ms / t.live_frames.max(1) as f64,
         t.live_session_detect_ms / t.live_single_detect_ms.max(f64::MIN_POSITIVE),
         t.live_session_ms / t.live_frames.max(1) as f64,
         t.live_single_ms / t.live_frames.max(1) as f64,
         t.live_session_ms / t.live_single_ms.max(f64::MIN_POSITIVE)
+    );
+}
+
+fn report_reasons(t: &Tally) {
+    let reasons: Vec<String> = t
+        .full_reasons
+        .iter()
+        .map(|(reason, n)| format!("{reason} {n}"))
+        .collect();
+    println!(
+        "full-frame searches on frames with live tracks: {}",
+        reasons.join(", ")
     );
 }
 
@@ -468,9 +496,11 @@ fn main() {
     for name in &names {
         let t = run(name, max_frames);
         report(name, &t);
+        report_reasons(&t);
         pooled.pool(&t);
     }
     if names.len() > 1 {
         report("all", &pooled);
+        report_reasons(&pooled);
     }
 }

@@ -6,7 +6,9 @@
 
 use nalgebra::Vector3;
 use qrpose::api::image::ImageQuery;
-use qrpose::app::{FrameIn, ImageLimits, Search, TrackAnswer, TrackSession, TrackSetup};
+use qrpose::app::{
+    FrameIn, FullReason, ImageLimits, Search, TrackAnswer, TrackSession, TrackSetup,
+};
 use qrpose::detect::cancel::CancelFlag;
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
 use qrpose::render::{CodePlacement, EcLevel, Effects, Encoding, MultiScene, render_scene};
@@ -27,17 +29,29 @@ fn placement(payload: &str, centre: [f64; 3]) -> CodePlacement {
 
 /// A 1280 × 720 frame of `codes` (payloads `A` at the left, `B` at the right), JPEG.
 fn frame(codes: &[&str], seed: u64) -> Vec<u8> {
+    let placements = codes
+        .iter()
+        .map(|p| match *p {
+            "A" => placement("A", [-150.0, 0.0, 500.0]),
+            _ => placement("B", [150.0, 20.0, 550.0]),
+        })
+        .collect();
+    frame_of(placements, seed)
+}
+
+/// A 1280 × 720 JPEG frame of `codes`.
+fn frame_of(codes: Vec<CodePlacement>, seed: u64) -> Vec<u8> {
+    try_frame_of(codes, seed).expect("renders")
+}
+
+/// A 1280 × 720 JPEG frame of `codes`; `None` when one is not wholly in view (the renderer
+/// draws only whole codes).
+fn try_frame_of(codes: Vec<CodePlacement>, seed: u64) -> Option<Vec<u8>> {
     let scene = MultiScene {
         camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("a camera"),
         width_px: 1280,
         height_px: 720,
-        codes: codes
-            .iter()
-            .map(|p| match *p {
-                "A" => placement("A", [-150.0, 0.0, 500.0]),
-                _ => placement("B", [150.0, 20.0, 550.0]),
-            })
-            .collect(),
+        codes,
     };
     let effects = Effects {
         blur_px: 0.5,
@@ -46,7 +60,7 @@ fn frame(codes: &[&str], seed: u64) -> Vec<u8> {
         seed,
         ..Effects::default()
     };
-    render_scene(&scene, &effects).expect("renders").encoded
+    render_scene(&scene, &effects).ok().map(|r| r.encoded)
 }
 
 fn session(full_search_every: u32) -> TrackSession {
@@ -98,7 +112,7 @@ fn a_code_entering_the_view_is_found_within_the_full_search_cadence() {
     }
     assert_eq!(
         searches[0],
-        Search::Full,
+        Search::Full(FullReason::NoTracks),
         "the first frame searches everything"
     );
     assert!(
@@ -140,4 +154,55 @@ fn a_confident_track_missed_by_its_region_coasts_and_is_not_dropped() {
         answer.tracks
     );
     assert_eq!(status_of(&answer, "B"), Some(TrackStatus::Tracking));
+}
+
+#[test]
+fn a_code_leaving_the_view_makes_no_frame_search_everything() {
+    // Every region a crop read misses counts as not confident here, so before the rule
+    // (a region predicted partly outside the image is not searched for) each frame after A
+    // left would have searched the whole frame, and so would the frame after A was lost.
+    let mut s = session(1000);
+    s = TrackSession::new(TrackSetup {
+        tracker: TrackerParams {
+            confident_corner_sigma_px: 1e-3,
+            ..TrackerParams::default()
+        },
+        ..s.setup().clone()
+    })
+    .expect("a session");
+    // A moves left at 30 mm a frame (0.9 m/s at 500 mm) until it reaches the image's edge,
+    // then is not drawn (the renderer draws whole codes only; a code cut by the edge is
+    // not read either). B stays.
+    let a_at = |k: u32| placement("A", [-150.0 - 30.0 * f64::from(k), 0.0, 500.0]);
+    let b = || placement("B", [150.0, 20.0, 550.0]);
+    let mut searches = Vec::new();
+    let mut a_lost_at = None;
+    for k in 0..30 {
+        let seed = 10 + u64::from(k);
+        let jpeg =
+            try_frame_of(vec![a_at(k), b()], seed).unwrap_or_else(|| frame_of(vec![b()], seed));
+        let answer = run(&mut s, &jpeg, k);
+        searches.push(answer.search);
+        if k < 4 {
+            assert!(status_of(&answer, "A").is_some(), "frame {k}");
+        }
+        assert_eq!(
+            status_of(&answer, "B"),
+            Some(if k == 0 {
+                TrackStatus::New
+            } else {
+                TrackStatus::Tracking
+            }),
+            "frame {k}"
+        );
+        if a_lost_at.is_none() && status_of(&answer, "A") == Some(TrackStatus::Lost) {
+            a_lost_at = Some(k);
+        }
+    }
+    let lost = a_lost_at.expect("A's track is lost once it has left");
+    assert_eq!(searches[0], Search::Full(FullReason::NoTracks));
+    assert!(
+        searches[1..].iter().all(|s| *s == Search::Regions),
+        "A lost at frame {lost}; searches {searches:?}"
+    );
 }

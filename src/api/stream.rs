@@ -181,7 +181,9 @@ pub struct TrackPoseDto {
     pub position_mm: Vec3Mm,
     /// The marker's rotation, as in a pose.
     pub rotation: RotationDto,
-    /// 6×6 covariance of the filtered pose, in the order of a pose's covariance.
+    /// 6×6 covariance of the filtered pose, in the order of a pose's covariance: the filter's
+    /// plus the latest fused frame's own (the error frames of one scene share, which
+    /// averaging does not remove; docs/stream.md, Covariance).
     pub covariance: CovarianceDto,
     /// The marker centre's velocity in the camera frame, mm/s.
     pub velocity_mm_per_s: Vec3Mm,

@@ -39,6 +39,6 @@ pub use image::{ImageAnswer, ImageError, MarkerAnswer, Timing, estimate_decoded,
 pub use prior::Prior;
 pub use setup::{DetectSetup, ImageLimits, ImageSetup, Setup, SizeResolver, Sizing};
 pub use track::{
-    DEFAULT_FULL_SEARCH_EVERY, FrameIn, Search, TrackAnswer, TrackSession, TrackSetup,
+    DEFAULT_FULL_SEARCH_EVERY, FrameIn, FullReason, Search, TrackAnswer, TrackSession, TrackSetup,
     TrackSetupError,
 };

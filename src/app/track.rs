@@ -6,13 +6,16 @@
 //! Where to look: on a frame with live tracks the detector first reads crops around each
 //! track's predicted corners ([`qrpose_detect::detect_in_regions`]); the whole frame is
 //! searched on the first frame, every [`TrackSetup::full_search_every`] frames, on the frame
-//! after a track was lost, and on a frame whose crop reads missed a track not predicted
-//! with confidence. A code missed by its crop but predicted with confidence is `coasting`.
+//! after a track was lost inside the image (not one that left the view), and on a frame whose crop reads missed a track not predicted
+//! with confidence but predicted wholly inside the image. A code missed by its crop but
+//! predicted with confidence, or predicted partly outside the image (leaving the view: no
+//! search can read it), is `coasting`.
 //! So a code that enters the view is found within `full_search_every` frames.
 
 use super::image::{ImageAnswer, ImageError, MarkerAnswer, estimate_decoded};
 use super::prior::Prior;
 use super::setup::ImageSetup;
+use qrpose_core::geometry::camera::Camera;
 use qrpose_core::geometry::marker::CornerOrder;
 use qrpose_core::geometry::quad::ImageQuad;
 use qrpose_detect::cancel::CancelFlag;
@@ -46,10 +49,25 @@ pub struct TrackSetup {
 /// How a frame was searched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Search {
-    /// The whole frame.
-    Full,
+    /// The whole frame, and why.
+    Full(FullReason),
     /// Only the crops around the live tracks' predicted corners.
     Regions,
+}
+
+/// Why a frame was searched whole (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FullReason {
+    /// No live track (the session's first frame, or every track lost).
+    NoTracks,
+    /// `full_search_every` frames since the last full-frame search.
+    Cadence,
+    /// A track was lost on the previous frame.
+    TrackLost,
+    /// No live track's predicted corners are in front of the camera.
+    NoRegion,
+    /// A crop read missed a track not predicted with confidence.
+    MissedUnconfident,
 }
 
 /// One frame given to a session.
@@ -168,12 +186,16 @@ impl TrackSession {
                 track_ids[*marker].clone_from(&assignment.track_id);
             }
         }
-        self.since_full = if search == Search::Full {
+        self.since_full = if matches!(search, Search::Full(_)) {
             1
         } else {
             self.since_full + 1
         };
-        self.full_next = update.tracks.iter().any(|t| t.status == TrackStatus::Lost);
+        let (width_px, height_px) = (image.width() as f64, image.height() as f64);
+        self.full_next = update.tracks.iter().any(|t| {
+            t.status == TrackStatus::Lost
+                && lost_in_view(t, &setup.pose.camera, width_px, height_px)
+        });
         Ok(TrackAnswer {
             image: answer,
             track_ids,
@@ -192,10 +214,16 @@ impl TrackSession {
         t_ms: f64,
         cancel: CancelFlag,
     ) -> Result<(ImageAnswer, Search), ImageError> {
-        let due = self.full_next
-            || self.tracker.is_empty()
-            || self.since_full >= self.setup.full_search_every;
-        let regions = if due {
+        let due = if self.tracker.is_empty() {
+            Some(FullReason::NoTracks)
+        } else if self.full_next {
+            Some(FullReason::TrackLost)
+        } else if self.since_full >= self.setup.full_search_every {
+            Some(FullReason::Cadence)
+        } else {
+            None
+        };
+        let regions = if due.is_some() {
             Vec::new()
         } else {
             self.tracker
@@ -204,27 +232,50 @@ impl TrackSession {
         };
         if regions.is_empty() {
             let answer = estimate_decoded(setup, image, decode_ms, cancel)?;
-            return Ok((answer, Search::Full));
+            return Ok((answer, Search::Full(due.unwrap_or(FullReason::NoRegion))));
         }
         let answer =
             super::image::estimate_in_regions(setup, image, decode_ms, &regions, cancel.clone())?;
-        if missed_unconfident(&regions, &answer) {
-            let answer = estimate_decoded(setup, image, decode_ms, cancel)?;
-            return Ok((answer, Search::Full));
+        if missed_unconfident(&regions, &answer, image) {
+            let region_detect_ms = answer.timing.detect_ms;
+            let mut answer = estimate_decoded(setup, image, decode_ms, cancel)?;
+            // The frame's detection time counts both searches.
+            answer.timing.detect_ms += region_detect_ms;
+            return Ok((answer, Search::Full(FullReason::MissedUnconfident)));
         }
         Ok((answer, Search::Regions))
     }
 }
 
-/// Whether a region not predicted with confidence found no code of its payload: the whole
-/// frame must be searched for it.
-fn missed_unconfident(regions: &[PredictedRegion], answer: &ImageAnswer) -> bool {
+/// Whether a region not predicted with confidence, and predicted wholly inside the image,
+/// found no code of its payload: the whole frame must be searched for it. A code predicted
+/// partly outside the image (leaving the view) cannot be read by any search; its track
+/// coasts, and the cadence's full-frame search finds it if it stayed.
+fn missed_unconfident(
+    regions: &[PredictedRegion],
+    answer: &ImageAnswer,
+    image: &GrayImage,
+) -> bool {
+    let (width_px, height_px) = (image.width() as f64, image.height() as f64);
     regions.iter().any(|r| {
         !r.confident
+            && r.predicted_inside(width_px, height_px)
             && !answer
                 .markers
                 .iter()
                 .any(|m| m.code.candidate.text.as_deref() == Some(r.payload.as_str()))
+    })
+}
+
+/// Whether a lost track's last pose puts its code wholly inside the image: lost there, it may
+/// have been missed, and the next frame searches the whole frame for it; lost outside (it
+/// left the view), no search can find it.
+fn lost_in_view(track: &TrackReport, camera: &Camera, width_px: f64, height_px: f64) -> bool {
+    let pose = track.pose.marker_to_camera(&track.marker);
+    track.marker.object_points().iter().all(|m| {
+        camera.project(&pose.transform(m)).is_some_and(|p| {
+            (-0.5..=width_px - 0.5).contains(&p.u()) && (-0.5..=height_px - 0.5).contains(&p.v())
+        })
     })
 }
 
