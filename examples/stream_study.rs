@@ -32,6 +32,9 @@
 //!   mm) and rotation (RMS angle from the mean, °), per code, filtered / single-frame;
 //! - **lag** (moving videos): mean position error, filtered / single-frame, on the
 //!   code-frames both answer;
+//! - **resolved**: of the code-frames counted for **wrong**, those whose track said
+//!   `ambiguity_resolved`, and the share of them more than 5° off (the flag promises the
+//!   other planar branch at most 1 % likely);
 //! - **coverage**: code-frames in view (whole symbol in the image) after the code's first
 //!   read whose track answers within 5° (single frames: whose photo answer reads the code
 //!   within 5°);
@@ -107,6 +110,10 @@ struct Tally {
     region_detect_ms: f64,
     region_full_ms: f64,
     region_frames: usize,
+    /// Settled code-frames whose track said `ambiguity_resolved`, and of them those more
+    /// than 5° off.
+    resolved: usize,
+    resolved_wrong: usize,
     /// Full-frame searches on frames with live tracks, by reason.
     full_reasons: std::collections::BTreeMap<String, usize>,
     live_frames: usize,
@@ -145,6 +152,8 @@ impl Tally {
         self.region_detect_ms += o.region_detect_ms;
         self.region_full_ms += o.region_full_ms;
         self.region_frames += o.region_frames;
+        self.resolved += o.resolved;
+        self.resolved_wrong += o.resolved_wrong;
         for (reason, n) in &o.full_reasons {
             *self.full_reasons.entry(reason.clone()).or_default() += n;
         }
@@ -332,6 +341,10 @@ fn run(name: &str, max_frames: Option<u32>) -> Tally {
             if track.frames_seen >= SETTLED_FRAMES {
                 tally.settled += 1;
                 tally.wrong_tracked += usize::from(tracked_deg > WRONG_DEG);
+                if track.ambiguity_resolved {
+                    tally.resolved += 1;
+                    tally.resolved_wrong += usize::from(tracked_deg > WRONG_DEG);
+                }
                 if let Ok(measured) = &m.pose {
                     let deg = angle_deg(&measured.pose.rotation(), &truth_r);
                     tally.wrong_measured += usize::from(deg > WRONG_DEG);
@@ -403,6 +416,12 @@ fn report(name: &str, t: &Tally) {
         pct(t.wrong_single, t.settled_single),
         t.settled_single,
         pct(t.wrong_measured, t.settled),
+    );
+    println!(
+        "resolved (the track said ambiguity_resolved, from its {SETTLED_FRAMES}th frame): {} code-frames, {} of them ({:.2} %) more than {WRONG_DEG}° off",
+        t.resolved,
+        t.resolved_wrong,
+        pct(t.resolved_wrong, t.resolved)
     );
     println!(
         "coverage (in view after the first read, within {WRONG_DEG}°): tracked {:.1} % vs single-frame {:.1} % of {}",
