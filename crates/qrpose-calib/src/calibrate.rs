@@ -8,6 +8,7 @@
 //! median (not the RMS) judges the view as a whole: a few outlying points are the robust
 //! loss's business and should not cost a good view.
 
+use crate::covariance::{BLOCKS_PER_SIDE, intrinsic_covariance};
 use crate::error::{CalibrationError, SolveFailure};
 use crate::fit::{self, Fit};
 use crate::homography::homography_from_points;
@@ -178,24 +179,26 @@ fn worst_view(fits: &[ViewFit]) -> Option<(usize, DropReason)> {
     })
 }
 
-/// The standard deviations of the intrinsics ([`ParameterStd`]).
+/// The standard deviations of the intrinsics ([`ParameterStd`]): the square roots of the
+/// diagonal of the cluster-robust covariance of [`crate::covariance`] (clusters: patches of
+/// each view's target), infinite where the data leave a parameter undetermined (a singular
+/// system, or no more residuals than unknowns).
 fn parameter_std(fit: &Fit, views: &[ViewData]) -> ParameterStd {
-    let k = &fit.state.intrinsics;
-    let n_a = k.count();
+    let n_a = fit.state.intrinsics.count();
     let points: usize = views.iter().map(|v| v.target_mm.len()).sum();
     let unknowns = n_a + 6 * views.len();
-    let dof = (2 * points).saturating_sub(unknowns);
-    let variances: Vec<f64> = match lm::intrinsic_inverse(&fit.state, views, fit.loss) {
-        Some((inverse, weighted_squares)) if dof > 0 => {
-            let s2 = weighted_squares / dof as f64;
-            (0..n_a).map(|i| s2 * inverse[(i, i)]).collect()
-        }
-        _ => vec![f64::INFINITY; n_a],
+    let covariance = (2 * points > unknowns)
+        .then(|| intrinsic_covariance(&fit.state, views, fit.loss, BLOCKS_PER_SIDE))
+        .flatten();
+    let std: Vec<f64> = match covariance {
+        Some(c) => (0..n_a)
+            .map(|i| {
+                let v = c[(i, i)];
+                if v >= 0.0 { v.sqrt() } else { f64::INFINITY }
+            })
+            .collect(),
+        None => vec![f64::INFINITY; n_a],
     };
-    let std: Vec<f64> = variances
-        .iter()
-        .map(|v| if *v >= 0.0 { v.sqrt() } else { f64::INFINITY })
-        .collect();
     ParameterStd {
         fx_px: std[0],
         fy_px: std[1],

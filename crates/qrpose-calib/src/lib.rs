@@ -20,6 +20,7 @@
 //! | `lm` | one Levenberg-Marquardt over intrinsics and poses, Schur complement on the poses |
 //! | `robust` | Huber's loss, its scale, IRLS weights |
 //! | `fit` | closed form → radial estimate → robust rounds |
+//! | `covariance` | the intrinsics' covariance, cluster-robust over patches of the target (CR2 sandwich) |
 //! | `calibrate` | input checks, dropping views that do not fit, standard deviations, assembly |
 //! | [`warnings`] | the warnings, their thresholds, the image coverage |
 //! | [`compare`] | the distortion-field difference of two cameras, px |
@@ -35,6 +36,7 @@
 
 mod calibrate;
 pub mod compare;
+mod covariance;
 mod distortion_init;
 mod error;
 mod fisheye_init;
@@ -50,6 +52,7 @@ pub mod warnings;
 mod zhang;
 
 pub use calibrate::{DROP_FLOOR_PX, DROP_RATIO, calibrate};
+pub use covariance::BLOCKS_PER_SIDE;
 pub use error::{CalibrationError, SolveFailure};
 pub use fit::{MAX_ROBUST_ROUNDS, SCALE_SETTLED};
 pub use input::{

@@ -15,7 +15,7 @@
 //! so a step costs one (4 + coefficients)² solve and one 6 × 6 solve per view. D is
 //! Marquardt's diagonal (each block's own diagonal, floored at [`DIAGONAL_FLOOR`] of its
 //! largest entry), λ starts at [`LAMBDA_START`] and moves by [`LAMBDA_FACTOR`]. The same
-//! reduced matrix at λ = 0 gives the intrinsics' block of (JᵀWJ)⁻¹ ([`intrinsic_inverse`]).
+//! reduced matrix at λ = 0 is the bread of the intrinsics' covariance ([`crate::covariance`]).
 
 use crate::error::SolveFailure;
 use crate::model::{Intrinsics, MAX_INTRINSICS, Pose, project, project_with_jacobian};
@@ -104,19 +104,19 @@ fn cost(state: &State, views: &[ViewData], loss: Huber) -> Option<f64> {
     total.is_finite().then_some(total)
 }
 
-/// The blocks of JᵀWJ and JᵀW·e (module doc), Σ ρ and Σ w·‖e‖².
-struct Normal {
-    n_a: usize,
+/// The blocks of JᵀWJ and JᵀW·e (module doc), and Σ ρ.
+pub(crate) struct Normal {
+    pub n_a: usize,
     u: SMatrix<f64, MAX_INTRINSICS, MAX_INTRINSICS>,
     g_a: SVector<f64, MAX_INTRINSICS>,
-    w: Vec<SMatrix<f64, MAX_INTRINSICS, 6>>,
+    /// Each view's W_i = Σ_i J_aᵀWJ_b.
+    pub w: Vec<SMatrix<f64, MAX_INTRINSICS, 6>>,
     v: Vec<Matrix6<f64>>,
     g_b: Vec<Vector6<f64>>,
     cost: f64,
-    weighted_squares: f64,
 }
 
-fn normal_equations(state: &State, views: &[ViewData], loss: Huber) -> Option<Normal> {
+pub(crate) fn normal_equations(state: &State, views: &[ViewData], loss: Huber) -> Option<Normal> {
     let k = &state.intrinsics;
     k.camera()?;
     let lens = k.distortion()?;
@@ -128,7 +128,6 @@ fn normal_equations(state: &State, views: &[ViewData], loss: Huber) -> Option<No
         v: Vec::with_capacity(views.len()),
         g_b: Vec::with_capacity(views.len()),
         cost: 0.0,
-        weighted_squares: 0.0,
     };
     for (view, pose) in views.iter().zip(&state.poses) {
         let mut w_i = SMatrix::<f64, MAX_INTRINSICS, 6>::zeros();
@@ -140,7 +139,6 @@ fn normal_equations(state: &State, views: &[ViewData], loss: Huber) -> Option<No
             let length = e.norm();
             let weight = loss.weight(length);
             n.cost += loss.rho(length);
-            n.weighted_squares += weight * length * length;
             let ja_t_w = p.d_intrinsics.transpose() * weight;
             let jb_t_w = p.d_pose.transpose() * weight;
             n.u += ja_t_w * p.d_intrinsics;
@@ -173,17 +171,17 @@ struct Step {
 }
 
 /// The reduced system of the module doc at some damping.
-struct Reduced {
+pub(crate) struct Reduced {
     /// The Schur complement S = U − Σ W_i·V_i⁻¹·W_iᵀ (intrinsics × intrinsics).
-    s: DMatrix<f64>,
+    pub s: DMatrix<f64>,
     /// Its right-hand side −g_a + Σ W_i·V_i⁻¹·g_b,i.
     rhs: DVector<f64>,
     /// Each view's factored V_i.
-    factors: Vec<Cholesky<f64, nalgebra::U6>>,
+    pub factors: Vec<Cholesky<f64, nalgebra::U6>>,
 }
 
 /// The reduced system at damping λ; `None` when a pose block is not positive definite.
-fn reduced(n: &Normal, lambda: f64) -> Option<Reduced> {
+pub(crate) fn reduced(n: &Normal, lambda: f64) -> Option<Reduced> {
     let u = damped(&n.u, n.n_a, lambda);
     let mut s = DMatrix::from_fn(n.n_a, n.n_a, |i, j| u[(i, j)]);
     let mut rhs = DVector::from_fn(n.n_a, |i, _| -n.g_a[i]);
@@ -293,19 +291,4 @@ pub(crate) fn minimise(
         iterations,
         converged: false,
     })
-}
-
-/// The intrinsics' block of (JᵀWJ)⁻¹ at `state` (undamped), and Σ w·‖e‖² there. `None`
-/// when the reduced matrix is singular (a parameter the data leave undetermined).
-pub(crate) fn intrinsic_inverse(
-    state: &State,
-    views: &[ViewData],
-    loss: Huber,
-) -> Option<(DMatrix<f64>, f64)> {
-    let n = normal_equations(state, views, loss)?;
-    let inverse = Cholesky::new(reduced(&n, 0.0)?.s)?.inverse();
-    inverse
-        .iter()
-        .all(|x| x.is_finite())
-        .then_some((inverse, n.weighted_squares))
 }

@@ -44,10 +44,13 @@ impl CameraCalibration {
     }
 }
 
-/// One standard deviation of each intrinsic parameter, from the covariance
-/// s²·(JᵀWJ)⁻¹ at the solution, with s² = Σ w·‖e‖² / (2·points − unknowns) the residual
-/// variance (every unknown counted, poses included). `f64::INFINITY` when the data leave the
-/// parameters undetermined (the normal matrix is singular).
+/// One standard deviation of each intrinsic parameter, from the cluster-robust covariance
+/// S⁻¹·(Σ_g c_g·c_gᵀ)·S⁻¹ at the solution (the crate's `covariance` module): S the
+/// intrinsics' block of JᵀWJ with the poses eliminated, c_g the score of the residuals of
+/// one patch of one view's target (a cell of a [`crate::BLOCKS_PER_SIDE`]² grid), adjusted
+/// for the patch's leverage (CR2), so that errors shared by neighbouring points are counted.
+/// `f64::INFINITY` when the data leave the parameters undetermined (the normal matrix is
+/// singular, or there are no more residuals than unknowns).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParameterStd {
     /// Of fx, px.
