@@ -38,9 +38,12 @@ principal point error (px), the distortion field error (95th percentile over a 9
 on the image's inner 90 % of |d_true(p) - d_fit(p)|, d(p) = p - K D^-1(K^-1 p), each camera
 with its own K, as qrpose_calib::compare), the projection difference (95th percentile of
 where the fitted camera sees the true camera's rays; it includes the intrinsics' errors),
-the reported standard deviations and the normalised errors (est - true) / std of fx, fy,
-cx, cy (their RMS over the sets is about 1 when the stds are right: 0.69-1.31 is the 95 %
-range of the RMS of 20 standard normal draws), and the time for the 15 photos: CPU (user +
+the reported standard deviations and the normalised errors (est - true) / std of every
+parameter, fx, fy, cx, cy, k1, k2, p1, p2, k3 (their RMS over the sets is about 1 when the
+stds are right: 0.69-1.31 is the 95 % range of the RMS of 20 standard normal draws; with
+--first-seed and --sets, seeds not used to choose a method can be judged alone), for ours the correlation of the
+residuals of two points of a view by their distance (cm.residual_correlation) and the photos
+it left out (why, and how tilted their code), and the time for the 15 photos: CPU (user +
 sys, of the children for subprocesses) and wall clock, with the load average beside them.
 
 Output: Markdown tables (the first set's values; over all sets: RMS and max of each error,
@@ -143,7 +146,8 @@ def calibrate_cv(object_points, image_points, size):
         tuple(size), None, None, flags=0, criteria=crit)
     rms, k, dist, std_int = out[0], out[1], out[2].ravel(), out[5].ravel()
     cam = cm.Camera(k[0, 0], k[1, 1], k[0, 2], k[1, 2], list(dist[:5]))
-    std = dict(zip(["fx_px", "fy_px", "cx_px", "cy_px"], map(float, std_int[:4])))
+    # stdDeviationsIntrinsics: fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, ...
+    std = dict(zip(cm.PARAMETERS, map(float, std_int[:len(cm.PARAMETERS)])))
     return cam, std, float(rms)
 
 
@@ -159,13 +163,20 @@ def run_ours(d, truth, args):
     c = r["camera"]
     cam = cm.Camera(c["fx_px"], c["fy_px"], c["cx_px"], c["cy_px"],
                     c["distortion"]["coefficients"])
-    std = {k: r["std"][k] for k in ("fx_px", "fy_px", "cx_px", "cy_px")}
+    std = {k: r["std"][k] for k in cm.PARAMETERS[:4]}
+    std.update(zip(cm.PARAMETERS[4:], r["std"]["coefficients"]))
     views = r.get("views") or []
     used = sum(1 for v in views if v.get("used", v.get("status") != "dropped"))
     return {"ok": True, "camera": cam, "std": std, "cpu_s": clock.cpu_s, "wall_s": clock.wall_s,
             "views": used, "warnings": [w.get("name", w) if isinstance(w, dict) else w
                                         for w in r.get("warnings", [])],
-            "rms_px": r.get("reprojection_rms_px")}
+            "rms_px": r.get("reprojection_rms_px"),
+            "residual_correlation": cm.residual_correlation(views),
+            "tilts_deg": [v["tilt_deg"] for v in truth["views"]],
+            "left_out": [{"index": i, "reason": v.get("dropped"),
+                          "tilt_deg": truth["views"][i]["tilt_deg"]}
+                         for i, v in enumerate(views)
+                         if not v.get("used", v.get("status") != "dropped")]}
 
 
 def run_checkerboard(d, truth, args):

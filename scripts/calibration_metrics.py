@@ -22,6 +22,8 @@ INNER = 0.9
 QUANTILE = 0.95
 # The 95 % range of the RMS of 20 standard normal draws: sqrt(chi2(20) quantiles / 20).
 Z_RMS_RANGE_20 = (0.69, 1.31)
+# The parameters with a reported standard deviation, in OpenCV's order (plumb_bob).
+PARAMETERS = ("fx_px", "fy_px", "cx_px", "cy_px", "k1", "k2", "p1", "p2", "k3")
 
 
 class Camera:
@@ -70,21 +72,51 @@ def quantile(values, q=QUANTILE):
 
 def errors(true, fit, size, std):
     """Every measure of `fit` against `true` (Camera), with the normalised errors of fit's
-    reported standard deviations `std` (fx_px, fy_px, cx_px, cy_px)."""
+    reported standard deviations `std` (PARAMETERS)."""
     p = grid(size)
     field = np.linalg.norm(true.displacement(p) - fit.displacement(p), axis=1)
     moved = np.linalg.norm(fit.project(true.rays(p)) - p, axis=1)
     fx_pct, fy_pct = 100 * (fit.fx / true.fx - 1), 100 * (fit.fy / true.fy - 1)
     diff = {"fx_px": fit.fx - true.fx, "fy_px": fit.fy - true.fy,
             "cx_px": fit.cx - true.cx, "cy_px": fit.cy - true.cy}
+    diff.update(zip(PARAMETERS[4:], fit.dist - true.dist))
     return {
         "fx_error_pct": fx_pct, "fy_error_pct": fy_pct,
         "focal_pct": max(abs(fx_pct), abs(fy_pct)),
         "pp_px": math.hypot(diff["cx_px"], diff["cy_px"]),
         "field_p95_px": quantile(field), "proj_p95_px": quantile(moved),
         "std_fx_pct": 100 * std["fx_px"] / fit.fx,
-        "z": {k: (diff[k] / std[k] if std[k] > 0 else float("nan")) for k in diff},
+        "z": {k: (float(diff[k]) / std[k] if std.get(k, 0) > 0 else float("nan")) for k in diff},
     }
+
+
+# Distance bins, px, of the residual correlation of ours (see residual_correlation).
+CORRELATION_BINS_PX = (0.0, 6.0, 15.0, 25.0, 40.0)
+
+
+def residual_correlation(views):
+    """The correlation of the residuals of two points of one view against their distance:
+    for each bin of CORRELATION_BINS_PX, sum over pairs (p, q) of the used views of
+    e_p . e_q, over the pair count times the mean |e|^2 (views: the `views` of a calibrate
+    answer, with `image_points`). 1: the pair's errors are the same; 0: unrelated."""
+    bins = np.asarray(CORRELATION_BINS_PX)
+    num, count, squares, points = np.zeros(len(bins) - 1), np.zeros(len(bins) - 1), 0.0, 0
+    for v in views:
+        pts = [p for p in v.get("image_points") or [] if p.get("residual_px") is not None]
+        if not v.get("used") or len(pts) < 2:
+            continue
+        xy = np.array([p["image_px"] for p in pts], float)
+        e = np.array([p["residual_px"] for p in pts], float)
+        squares, points = squares + float((e ** 2).sum()), points + len(e)
+        i, j = np.triu_indices(len(e), 1)
+        d = np.linalg.norm(xy[i] - xy[j], axis=1)
+        dots = (e[i] * e[j]).sum(axis=1)
+        k = np.digitize(d, bins) - 1
+        inside = (k >= 0) & (k < len(num))
+        np.add.at(num, k[inside], dots[inside])
+        np.add.at(count, k[inside], 1)
+    mean_square = squares / points if points else float("nan")
+    return [float(n / c / mean_square) if c else float("nan") for n, c in zip(num, count)]
 
 
 def nearest_errors(found, truth):
@@ -130,7 +162,9 @@ def summary(results, m):
          "wall_s_median": _median(col("wall_s"))}
     for k in ("focal_pct", "pp_px", "field_p95_px", "proj_p95_px"):
         s[k + "_rms"], s[k + "_max"] = rms(col(k)), max(col(k))
-    s["z_rms"] = {k: rms([r["z"][k] for r in rs]) for k in ("fx_px", "fy_px", "cx_px", "cy_px")}
+    s["z_rms"] = {k: rms([r["z"][k] for r in rs]) for k in PARAMETERS}
+    corr = [r["residual_correlation"] for r in rs if r.get("residual_correlation")]
+    s["residual_correlation"] = [float(np.nanmean(c)) for c in zip(*corr)] if corr else None
     return s
 
 
@@ -162,7 +196,8 @@ def _first_set_table(results, methods):
 def _sets_table(sums, methods, n):
     lines = [f"Over {n} sets (RMS / max over the sets; normalised error (est - true)/std, RMS):", "",
              "| method | sets (failed) | views (min) | focal error % | principal point error px | "
-             "field p95 px | projection p95 px | std fx % (mean) | normalised RMS fx, fy, cx, cy | "
+             "field p95 px | projection p95 px | std fx % (mean) | normalised RMS fx, fy, cx, cy, "
+             "k1, k2, p1, p2, k3 | "
              "CPU s (median / max) | wall s (median) |",
              "|---" * 11 + "|"]
     for m in methods:
@@ -170,7 +205,7 @@ def _sets_table(sums, methods, n):
         if not s:
             lines.append(f"| {m} | 0 |" + " |" * 9)
             continue
-        z = ", ".join(f"{s['z_rms'][k]:.2f}" for k in ("fx_px", "fy_px", "cx_px", "cy_px"))
+        z = ", ".join(f"{s['z_rms'][k]:.2f}" for k in PARAMETERS)
         pair = lambda k, f: f"{s[k + '_rms']:{f}} / {s[k + '_max']:{f}}"  # noqa: E731
         lines.append(
             f"| {m} | {s['sets']} ({s['failed']}) | {s['views_min']} | {pair('focal_pct', '.3f')} | "
@@ -198,11 +233,41 @@ def _targets(sums, targets, time_target_s):
     verdict = {True: "consistent", False: "NOT all within", None: "(range is for 20 sets)"}[inside]
     lines.append(f"- stds: normalised error RMS {', '.join(f'{k} {v:.2f}' for k, v in z.items())}; "
                  f"95 % range for 20 sets {lo}-{hi}: {verdict}")
+    corr = ours.get("residual_correlation")
+    if corr:
+        b = CORRELATION_BINS_PX
+        lines.append("- ours' residual correlation of two points of a view, by distance (mean over "
+                     "the sets): " + ", ".join(f"{b[i]:g}-{b[i + 1]:g} px {c:.2f}"
+                                               for i, c in enumerate(corr)))
     t = ours["cpu_s_max"]
     lines.append(f"- time for 15 photos on one core: CPU median {ours['cpu_s_median']:.2f} s, "
                  f"max {t:.2f} s (wall median {ours['wall_s_median']:.2f} s): "
                  f"{'met' if t < time_target_s else 'NOT met'} (target {time_target_s} s)")
     return lines
+
+
+# Photos tilted at least this much are counted apart in _left_out, deg.
+STEEP_TILT_DEG = 30.0
+
+
+def _left_out(results):
+    """What ours left out: the photos, why, how tilted their code, against the tilts of all."""
+    rs = [s["ours"] for s in results if s.get("ours", {}).get("ok") and "left_out" in s["ours"]]
+    if not rs:
+        return []
+    out = [x for r in rs for x in r["left_out"]]
+    tilts = [t for r in rs for t in r["tilts_deg"]]
+    reasons = {}
+    for x in out:
+        reasons[x["reason"]] = reasons.get(x["reason"], 0) + 1
+    steep = sum(1 for t in tilts if t >= STEEP_TILT_DEG)
+    steep_out = sum(1 for x in out if x["tilt_deg"] >= STEEP_TILT_DEG)
+    span = (f"; their codes tilted {min(x['tilt_deg'] for x in out):.0f}-"
+            f"{max(x['tilt_deg'] for x in out):.0f} deg" if out else "")
+    return [f"- ours left out {len(out)} of {len(tilts)} photos "
+            f"({', '.join(f'{k} {v}' for k, v in sorted(reasons.items()))}){span}; "
+            f"of the {steep} photos tilted {STEEP_TILT_DEG:g} deg or more {steep_out} left out, "
+            f"of the {len(tilts) - steep} tilted less {len(out) - steep_out}"]
 
 
 def report(results, methods, env, targets, time_target_s):
@@ -216,4 +281,4 @@ def report(results, methods, env, targets, time_target_s):
             ""]
     return "\n".join(head + _first_set_table(results, methods) + [""]
                      + _sets_table(sums, methods, len(results)) + [""]
-                     + _targets(sums, targets, time_target_s))
+                     + _targets(sums, targets, time_target_s) + _left_out(results))

@@ -5,9 +5,11 @@
 //! error is independent. A QR code's points are not: each module corner is the crossing of
 //! two line fits over four modules, so neighbouring corners share the errors of the same
 //! edge profiles, and a finder pattern's twelve corners share those of its squares. On the
-//! rendered photos of `scripts/calibration_compare.py` residuals of points 3-6 px apart
-//! correlate at 0.9 and those 6-15 px apart at 0.2, and s²·(JᵀWJ)⁻¹ understated the error
-//! of cx by about 1.5× (docs/measurements/calibration.md). Errors that move together over
+//! rendered photos of `scripts/calibration_compare.py` the residuals of two points of a view
+//! less than 6 px apart correlate at 0.33 on average (up to 0.46 in a set), those 6-15 px
+//! apart at 0.06 (the fit itself absorbs part of what they share), and s²·(JᵀWJ)⁻¹
+//! understated the errors of cx, k1, k2 and k3 by 1.6× (docs/measurements/calibration.md).
+//! Errors that move together over
 //! a patch move the intrinsics as one larger error, which the sandwich
 //!
 //! ```text
