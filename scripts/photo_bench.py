@@ -32,7 +32,10 @@ Output: a Markdown table per category (photos, codes, read % of each reader, med
 time of each, the photo-by-photo time ratio qrpose / zxing-cpp, median and p90, with OpenCV's
 decode and with Pillow's, photos where qrpose took > 150 ms, qrpose failures) with an overall
 row (read % over all codes, times over all photos), then codes read by one reader only,
-decoded quadrilaterals that match no label, and failures. --json OUT.json: per-image details.
+decoded quadrilaterals that match no label, the photos where qrpose took > 150 ms with the
+passes that took the time (`timing_ms.detect_passes`: name, ms, symbols decoded), a table of
+the passes by kind over all photos (photos, total and largest time, symbols decoded, photos
+where the kind decoded one), and failures. --json OUT.json: per-image details.
 Options: --only CATEGORY..., --limit N (first N photos of each category, manifest order),
 --no-zxing, --zxing-decode convert|draft, --repeat N (zxing-cpp runs per photo, median),
 --qrpose-repeat N (qrpose processes per photo, median time), --timeout S.
@@ -40,7 +43,7 @@ Options: --only CATEGORY..., --limit N (first N photos of each category, manifes
 Runs in target/photo-venv (zxing-cpp, numpy, Pillow, OpenCV; created on first use). The machine's
 load shows in the times: run it on an idle machine, or compare runs made side by side.
 """
-import argparse, json, sys, time
+import argparse, json, re, sys, time
 from collections import OrderedDict
 from pathlib import Path
 
@@ -136,6 +139,38 @@ def row(name, s):
             f"{ratio_cell(s.get('ratio_pillow'))} | {q['over_150ms']} | {q['failures']} |")
 
 
+def pass_kind(name):
+    """A pass's name with its region / crop number taken out (`region 3 double` -> `region K
+    double`), so that the passes of every photo add up by kind."""
+    return re.sub(r"\b(region|tile|pair|lone|triple) \d+", r"\1 K", name or "?")
+
+
+def print_pass_table(records):
+    """Per kind of pass, over every photo where qrpose ran it: photos, total and largest time,
+    symbols decoded, and photos where it decoded one."""
+    kinds = OrderedDict()
+    for r in records:
+        for name, ms, dec in r["qrpose"].get("passes") or []:
+            k = kinds.setdefault(pass_kind(name), {"photos": set(), "ms": 0.0, "max": 0.0,
+                                                   "decoded": 0, "photos_decoding": set()})
+            k["photos"].add(r["path"])
+            k["ms"] += ms or 0.0
+            k["max"] = max(k["max"], ms or 0.0)
+            k["decoded"] += dec or 0
+            if dec:
+                k["photos_decoding"].add(r["path"])
+    if not kinds:
+        return
+    total = sum(k["ms"] for k in kinds.values())
+    print(f"\nPasses by kind (`timing_ms.detect_passes`; decoded counts symbols a pass decoded, "
+          f"new or read before; detection total {total:.0f} ms):\n")
+    print("| pass | photos | total ms | share | largest ms | symbols decoded | photos where it decoded |")
+    print("|---|---|---|---|---|---|---|")
+    for name, k in sorted(kinds.items(), key=lambda kv: -kv[1]["ms"]):
+        print(f"| {name} | {len(k['photos'])} | {k['ms']:.0f} | {100 * k['ms'] / total:.1f} % | "
+              f"{k['max']:.0f} | {k['decoded']} | {len(k['photos_decoding'])} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -217,6 +252,16 @@ def main():
     print(f"qrpose > {SLOW_MS:g} ms: {len(slow)} of {len(records)} photos"
           + (": " + ", ".join(f"{r['path']} ({r['qrpose']['ms']:.0f} ms)" for r in slow[:15])
              + (" …" if len(slow) > 15 else "") if slow else "") + ".")
+    if slow:
+        print("Where their time went (`timing_ms.detect_passes`, the passes of over 5 % of the "
+              "photo's time: ms, symbols decoded):")
+        for r in slow:
+            q = r["qrpose"]
+            big = [p for p in q.get("passes") or [] if p[1] and p[1] > 0.05 * q["ms"]]
+            print(f"  - {r['path']} ({r['size'][0]}x{r['size'][1]}; decode {q['decode_ms']:.0f} ms, "
+                  f"detect {q['detect_ms']:.0f} ms; read {len(q['read'])} of {r['codes']}): "
+                  + ", ".join(f"{p[0]} {p[1]:.0f} ({p[2]})" for p in big) + ".")
+    print_pass_table(records)
     fails = [r for r in records if not r["qrpose"]["ok"]]
     if fails:
         print(f"qrpose failures ({len(fails)}, counted as nothing read):")
