@@ -5,7 +5,9 @@
 //! A region is the bounding box of a triple's three finder-pattern centres and the fourth
 //! corner of their parallelogram, widened by one finder pattern (7 modules) on each side so
 //! that the whole symbol is inside. Regions that overlap a symbol already read, or another
-//! region, are dropped ([`unread_regions`]).
+//! region, are dropped ([`unread_regions`]), and so are triples whose three finder patterns
+//! each lie inside a symbol already read: a finder pattern belongs to one symbol, so such a
+//! triple is made of the patterns of codes read (neighbouring codes on a sheet of many).
 
 // Pixel indices are floats clamped into the image before the cast.
 #![allow(clippy::cast_possible_truncation)]
@@ -28,6 +30,9 @@ pub(crate) struct Region {
     pub(crate) hi_v: f64,
     /// Width of the finder patterns that made it (7 modules), px; 0 when unknown.
     pub(crate) finder_px: f64,
+    /// Centres of the triple's three finder patterns, px; `None` for a box that no triple
+    /// made.
+    pub(crate) finders: Option<[PixelPoint; 3]>,
 }
 
 /// At most this many unread regions get further effort in one image: clutter can produce
@@ -45,7 +50,11 @@ impl Region {
         finder_px: f64,
     ) -> Option<Self> {
         let br = PixelPoint::new(tr.u() + bl.u() - tl.u(), tr.v() + bl.v() - tl.v());
-        Self::around(&[tl, tr, br, bl], finder_px).map(|r| Self { finder_px, ..r })
+        Self::around(&[tl, tr, br, bl], finder_px).map(|r| Self {
+            finder_px,
+            finders: Some([tl, tr, bl]),
+            ..r
+        })
     }
 
     /// The bounding box of `points` widened by `margin_px` on every side.
@@ -57,6 +66,7 @@ impl Region {
             hi_u: f64::NEG_INFINITY,
             hi_v: f64::NEG_INFINITY,
             finder_px: 0.0,
+            finders: None,
         };
         for p in points {
             r.lo_u = r.lo_u.min(p.u() - margin_px);
@@ -81,6 +91,9 @@ impl Region {
             hi_u: s(self.hi_u),
             hi_v: s(self.hi_v),
             finder_px: self.finder_px * scale,
+            finders: self
+                .finders
+                .map(|f| f.map(|p| PixelPoint::new(s(p.u()), s(p.v())))),
         }
     }
 
@@ -114,22 +127,39 @@ pub(crate) fn same_place(a: &Region, b: &Region) -> bool {
     a.overlap(b) > SAME_PLACE_OVERLAP
 }
 
-/// The regions worth more effort: not on a symbol already read (`found`, decoded ones),
+/// Whether `p` lies inside the quadrilateral `quad` (corners in order around it, either
+/// way round; a self-intersecting one contains nothing).
+fn inside_quad(quad: &[PixelPoint; 4], p: &PixelPoint) -> bool {
+    let side = |a: &PixelPoint, b: &PixelPoint| {
+        (b.u() - a.u()) * (p.v() - a.v()) - (b.v() - a.v()) * (p.u() - a.u())
+    };
+    let sides: Vec<f64> = (0..4).map(|i| side(&quad[i], &quad[(i + 1) % 4])).collect();
+    sides.iter().all(|&s| s > 0.0) || sides.iter().all(|&s| s < 0.0)
+}
+
+/// The regions worth more effort: not on a symbol already read (`found`, decoded ones), not
+/// a triple whose three finder patterns each lie inside one (they are the read symbols'),
 /// and one per place, largest first, at most [`MAX_REGIONS`].
 #[must_use]
 pub(crate) fn unread_regions(mut regions: Vec<Region>, found: &[Candidate]) -> Vec<Region> {
     regions.sort_by(|a, b| b.area().total_cmp(&a.area()));
-    let read: Vec<Region> = found
+    let decoded: Vec<&Candidate> = found.iter().filter(|c| c.payload.is_some()).collect();
+    let read: Vec<Region> = decoded
         .iter()
-        .filter(|c| c.payload.is_some())
         .filter_map(|c| Region::around(&c.corners_px, 0.0))
         .collect();
     let mut kept: Vec<Region> = Vec::new();
     for r in regions {
         let centre = PixelPoint::new(0.5 * (r.lo_u + r.hi_u), 0.5 * (r.lo_v + r.hi_v));
-        let on_read = read
-            .iter()
-            .any(|s| s.contains(&centre) || s.overlap(&r) > SAME_PLACE_OVERLAP);
+        let of_read_finders = r.finders.is_some_and(|finders| {
+            finders
+                .iter()
+                .all(|f| decoded.iter().any(|c| inside_quad(&c.corners_px, f)))
+        });
+        let on_read = of_read_finders
+            || read
+                .iter()
+                .any(|s| s.contains(&centre) || s.overlap(&r) > SAME_PLACE_OVERLAP);
         let seen = kept.iter().any(|k| k.overlap(&r) > SAME_PLACE_OVERLAP);
         if !on_read && !seen {
             kept.push(r);
@@ -206,7 +236,10 @@ impl Crop {
             lo_v: r.lo_v + dy,
             hi_u: r.hi_u + dx,
             hi_v: r.hi_v + dy,
-            ..r
+            finder_px: r.finder_px,
+            finders: r
+                .finders
+                .map(|f| f.map(|p| PixelPoint::new(p.u() + dx, p.v() + dy))),
         }
     }
 
@@ -269,6 +302,7 @@ mod tests {
             hi_u: hi,
             hi_v: hi,
             finder_px: 0.0,
+            finders: None,
         };
         let regions = vec![
             region(0.0, 100.0),   // on the read symbol
@@ -278,6 +312,42 @@ mod tests {
         ];
         let kept = unread_regions(regions, &[decoded_at(10.0, 90.0)]);
         assert_eq!(kept, vec![region(300.0, 400.0), region(600.0, 650.0)]);
+    }
+
+    fn decoded_box(u0: f64, v0: f64, u1: f64, v1: f64) -> Candidate {
+        Candidate {
+            corners_px: [
+                PixelPoint::new(u0, v0),
+                PixelPoint::new(u1, v0),
+                PixelPoint::new(u1, v1),
+                PixelPoint::new(u0, v1),
+            ],
+            ..decoded_at(0.0, 1.0)
+        }
+    }
+
+    #[test]
+    fn a_triple_of_read_symbols_finder_patterns_is_dropped() {
+        // Three read 80 px codes of a sheet around a gap; a triple of one finder pattern of
+        // each (12 px inside the code's corner nearest the gap) is no code of its own,
+        // though its box covers a fifth of each read code and its centre none of them.
+        // A triple with a pattern outside every read code may be an unread code's: kept.
+        let read = [
+            decoded_box(-68.0, -68.0, 12.0, 12.0),
+            decoded_box(100.0, -68.0, 180.0, 12.0),
+            decoded_box(-68.0, 100.0, 12.0, 180.0),
+        ];
+        let p = |u: f64, v: f64| PixelPoint::new(u, v);
+        let across = Region::from_finder_centres(p(0.0, 0.0), p(112.0, 0.0), p(0.0, 112.0), 24.0)
+            .expect("a region");
+        // The same triple away from the codes stays.
+        let beside =
+            Region::from_finder_centres(p(400.0, 0.0), p(512.0, 0.0), p(400.0, 112.0), 24.0)
+                .expect("a region");
+        assert_eq!(unread_regions(vec![across, beside], &read), vec![beside]);
+        let partly = Region::from_finder_centres(p(0.0, 0.0), p(112.0, 0.0), p(60.0, 300.0), 24.0)
+            .expect("a region");
+        assert_eq!(unread_regions(vec![partly], &read), vec![partly]);
     }
 
     #[test]
@@ -291,6 +361,7 @@ mod tests {
                     hi_u: lo + 50.0,
                     hi_v: 50.0,
                     finder_px: 0.0,
+                    finders: None,
                 }
             })
             .collect();
@@ -308,6 +379,7 @@ mod tests {
                 hi_u: 90.0,
                 hi_v: 60.0,
                 finder_px: 0.0,
+                finders: None,
             },
         )
         .expect("inside");

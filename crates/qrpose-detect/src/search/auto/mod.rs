@@ -32,7 +32,8 @@
 //!    frame: a crop around it (halved while its finder patterns are
 //!    [`REGION_HALVE_FINDER_PX`] or wider) goes through the other binariser, rqrr, and the
 //!    image variants of [`crate::raster`] (global histogram, denoised, contrast-stretched,
-//!    sharpened, double scale) until it reads. A frame with nothing code-like costs the
+//!    sharpened; double scale on crops of at most [`REGION_DOUBLE_MAX_SIDE_PX`]) until it
+//!    reads. A frame with nothing code-like costs the
 //!    reads of step 1 and the tile probes, nothing more.
 //! 3. **Everything** (`thorough`, and `balanced` on a frame of at most
 //!    [`WHOLE_FRAME_MAX_PIXELS`] where nothing was read): every backend and every variant on
@@ -260,6 +261,15 @@ fn precise(image: &GrayImage, rough: Candidate) -> Vec<Candidate> {
 /// crop (a triple of the small level of a 12 MP photo makes crops of millions of pixels)
 /// then costs a quarter or less, and 8-16 px per module still read.
 pub(crate) const REGION_HALVE_FINDER_PX: f64 = 112.0;
+/// Step 2 reads a region's crop at double scale (plain and sharpened) only when the crop, as
+/// read (after [`region_reduction`]), is at most this long on its longer side, px: the
+/// doubled copy is then at most 1280 px. On the development photos, zxing-cpp's images and
+/// the multi-code frames those reads decoded a code not read before only on crops of at
+/// most 416 px; on the development photos, crops longer than 640 px took 84 % of their
+/// time (20-70 ms a crop on 12 MP photos, most of the time of the photos over 150 ms:
+/// docs/measurements/detection.md, 2026-11-28).
+pub(crate) const REGION_DOUBLE_MAX_SIDE_PX: usize = 640;
+
 /// How many times a region's crop is halved before step 2 reads it (a power of two; 1 for a
 /// region whose finder size is unknown).
 fn region_reduction(finder_px: f64) -> usize {
@@ -326,11 +336,7 @@ fn regions(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
             };
             (pixels, reduction) = (Cow::Owned(half), 2.0 * reduction);
         }
-        // Not the negative: a light-on-dark code shows no finder pattern to the reads that
-        // make regions, so a region's negative holds one only by chance (it read no code of
-        // the benchmark sets: docs/measurements/detection.md, 2026-11-28).
-        let passes = look_closer(&pixels, best);
-        for pass in passes.into_iter().filter(|p| p.name != "inverted") {
+        for pass in region_passes(&pixels, best) {
             let Some(read) = pass.run(&format!("region {k} "), log, |d, variant, scale| {
                 let read = read_crop(&crop, d, variant, scale * reduction);
                 if reduction > 1.0 {
@@ -362,6 +368,21 @@ fn regions(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
             }
         }
     }
+}
+
+/// The passes of step 2 on a region's crop ([`look_closer`]), but not the negative: a
+/// light-on-dark code shows no finder pattern to the reads that make regions, so a region's
+/// negative holds one only by chance (it read no code of the benchmark sets:
+/// docs/measurements/detection.md, 2026-11-28); nor the double-scale copies of a crop
+/// longer than [`REGION_DOUBLE_MAX_SIDE_PX`].
+fn region_passes(crop: &GrayImage, best: Backend) -> Vec<passes::SecondPass<'_>> {
+    let large = crop.width().max(crop.height()) > REGION_DOUBLE_MAX_SIDE_PX;
+    look_closer(crop, best)
+        .into_iter()
+        .filter(|p| {
+            p.name != "inverted" && !(large && matches!(p.name, "double" | "double sharpened"))
+        })
+        .collect()
 }
 
 /// Step 3: every variant, then every other backend (rxing read the frame in step 1), on

@@ -85,6 +85,27 @@ fn second_passes_are_listed_cheapest_first() {
     assert_eq!(closer.last(), Some(&"rqrr"));
 }
 
+/// Step 2 reads a region's crop at double scale only up to REGION_DOUBLE_MAX_SIDE_PX: on a
+/// larger crop the doubled copies cost 20-50 ms each on 12 MP photos and read no new code
+/// of the benchmark sets. Never the negative.
+#[test]
+fn a_large_regions_crop_is_not_read_at_double_scale() {
+    let names = |w: usize, h: usize| -> Vec<&'static str> {
+        let crop = GrayImage::new(w, h, vec![128; w * h]).expect("a size");
+        region_passes(&crop, Backend::Rxing)
+            .iter()
+            .map(|p| p.name)
+            .collect()
+    };
+    let side = REGION_DOUBLE_MAX_SIDE_PX;
+    let small = names(side, side / 2);
+    assert!(small.contains(&"double") && small.contains(&"double sharpened"));
+    let large = names(side + 1, side / 2);
+    assert!(!large.iter().any(|n| n.starts_with("double")), "{large:?}");
+    assert_eq!(large.last(), Some(&"rqrr"));
+    assert!(!small.contains(&"inverted") && !large.contains(&"inverted"));
+}
+
 /// The zxing-cpp build looks closer at a region with the default build's passes first, in
 /// the same order (so it reads every region the default build reads), then with the image
 /// variants read by zxing-cpp, logged under its name.
