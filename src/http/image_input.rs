@@ -256,14 +256,16 @@ async fn multipart_input(
     })
 }
 
-fn body_error(err: BodyError, unreadable: ErrorCode) -> ApiError {
+/// A body that could not be buffered: 413 over the limit, else `unreadable`.
+pub(crate) fn body_error(err: BodyError, unreadable: ErrorCode) -> ApiError {
     match err {
         BodyError::TooLarge { limit_bytes } => ApiError::payload_too_large(limit_bytes),
         BodyError::Unreadable { .. } => ApiError::new(unreadable, err.to_string()),
     }
 }
 
-fn malformed_multipart(detail: impl Into<String>, part: Option<String>) -> ApiError {
+/// 400 `malformed_multipart`, naming the part when there is one.
+pub(crate) fn malformed_multipart(detail: impl Into<String>, part: Option<String>) -> ApiError {
     let problem = Problem::new(ErrorCode::MalformedMultipart, detail);
     ApiError::from(match part {
         Some(part) => problem.with_field(part),
@@ -274,14 +276,19 @@ fn malformed_multipart(detail: impl Into<String>, part: Option<String>) -> ApiEr
 /// A multipart parse error: 413 when a size limit was hit, else 400 (axum would answer 500
 /// for some stream errors; none of them is a fault of the service here, the body being in
 /// memory already).
-fn multipart_error(err: &MultipartError, limit_bytes: usize, part: Option<&str>) -> ApiError {
+pub(crate) fn multipart_error(
+    err: &MultipartError,
+    limit_bytes: usize,
+    part: Option<&str>,
+) -> ApiError {
     if err.status() == StatusCode::PAYLOAD_TOO_LARGE {
         return ApiError::payload_too_large(limit_bytes);
     }
     malformed_multipart(err.body_text(), part.map(str::to_owned))
 }
 
-fn missing_part(name: &str) -> ApiError {
+/// 422 `missing_field` for a multipart part not sent.
+pub(crate) fn missing_part(name: &str) -> ApiError {
     Problem::new(
         ErrorCode::MissingField,
         format!("the multipart body has no part `{name}`"),

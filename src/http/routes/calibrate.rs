@@ -10,13 +10,12 @@ use crate::app::ImageLimits;
 use crate::detect::cancel::CancelFlag;
 use crate::http::{
     error::ApiError,
-    extract::{self, BodyError, JsonBytes},
-    image_input::{self, IMAGE_PART, MULTIPART, REQUEST_PART},
+    extract::{self, JsonBytes},
+    image_input::{self, IMAGE_PART, MULTIPART, REQUEST_PART, malformed_multipart, missing_part},
     state::AppState,
 };
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Multipart, Request, State};
-use axum::http::StatusCode;
 use utoipa::ToSchema;
 
 /// The route.
@@ -173,28 +172,18 @@ impl FromRequest<AppState> for CalibrateInput {
             image_input::budgeted(bytes, permit)
         })
         .await
-        .map_err(|e| match e {
-            BodyError::TooLarge { limit_bytes } => ApiError::payload_too_large(limit_bytes),
-            BodyError::Unreadable { .. } => malformed(e.to_string(), None),
-        })?;
+        .map_err(|e| image_input::body_error(e, ErrorCode::MalformedMultipart))?;
         let mut multipart = Multipart::from_request(request, state)
             .await
-            .map_err(|rejection| malformed(rejection.body_text(), None))?;
+            .map_err(|rejection| malformed_multipart(rejection.body_text(), None))?;
         let (mut photos, mut request_json) = (Vec::new(), None);
-        let part_error = |e: &axum::extract::multipart::MultipartError, part: Option<&str>| {
-            if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
-                ApiError::payload_too_large(limit_bytes)
-            } else {
-                malformed(e.body_text(), part.map(str::to_owned))
-            }
-        };
         while let Some(part) = multipart
             .next_field()
             .await
-            .map_err(|e| part_error(&e, None))?
+            .map_err(|e| image_input::multipart_error(&e, limit_bytes, None))?
         {
             let name = part.name().map(str::to_owned).ok_or_else(|| {
-                malformed(
+                malformed_multipart(
                     format!(
                         "a part has no name; send the parts `{IMAGE_PART}` and `{REQUEST_PART}`"
                     ),
@@ -204,11 +193,11 @@ impl FromRequest<AppState> for CalibrateInput {
             let bytes = part
                 .bytes()
                 .await
-                .map_err(|e| part_error(&e, Some(&name)))?;
+                .map_err(|e| image_input::multipart_error(&e, limit_bytes, Some(&name)))?;
             match name.as_str() {
                 IMAGE_PART => photos.push(bytes),
                 REQUEST_PART if request_json.is_some() => {
-                    return Err(malformed(
+                    return Err(malformed_multipart(
                         format!("the part `{REQUEST_PART}` is given twice"),
                         Some(name),
                     ));
@@ -235,21 +224,4 @@ impl FromRequest<AppState> for CalibrateInput {
             request_json,
         })
     }
-}
-
-fn malformed(detail: impl Into<String>, part: Option<String>) -> ApiError {
-    let problem = Problem::new(ErrorCode::MalformedMultipart, detail);
-    ApiError::from(match part {
-        Some(part) => problem.with_field(part),
-        None => problem,
-    })
-}
-
-fn missing_part(name: &str) -> ApiError {
-    Problem::new(
-        ErrorCode::MissingField,
-        format!("the multipart body has no part `{name}`"),
-    )
-    .with_field(name)
-    .into()
 }
