@@ -9,7 +9,7 @@
 
 use super::support::{Server, scratch_dir};
 use super::webdriver::Browser;
-use super::{DESKTOP, PHONE, lock, maybe_write_screenshot, open_page, severe};
+use super::{DESKTOP, assert_fits_a_phone, lock, maybe_write_screenshot, open_page, severe};
 use qrpose_site::calibration::parse_calibration;
 use serde_json::{Value, json};
 use std::path::PathBuf;
@@ -297,18 +297,7 @@ fn dropped_photos_of_a_printed_code_show_its_camera_views_residuals_coverage_and
     );
 
     // At phone width nothing sticks out sideways.
-    browser.set_viewport(PHONE.0, PHONE.1, true);
-    let overflow = browser.wait_for(
-        "the phone layout",
-        &format!(
-            "return window.innerWidth === {} && {{scroll: document.documentElement.scrollWidth, inner: window.innerWidth}};",
-            PHONE.0
-        ),
-    );
-    assert!(
-        overflow["scroll"].as_u64() <= overflow["inner"].as_u64(),
-        "the tab is wider than a phone: {overflow}"
-    );
+    assert_fits_a_phone(&browser, "the tab");
 }
 
 /// The figure of `view` shows, at a full inlier with no down-weighted point near it, the

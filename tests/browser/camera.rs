@@ -11,7 +11,8 @@
 use super::support::{BIN, Server, client, scratch_dir};
 use super::webdriver::{Browser, ENTER};
 use super::{
-    DESKTOP, PHONE, assert_axes_match, axes, lock, maybe_write_screenshot, open_page, severe,
+    DESKTOP, assert_axes_match, assert_fits_a_phone, axes, lock, maybe_write_screenshot, open_page,
+    severe,
 };
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
@@ -333,19 +334,7 @@ fn the_live_camera_draws_every_tracked_code_and_stop_closes_the_session() {
     browser.scroll_to("#live");
     maybe_write_screenshot("setup-page-camera.png", &browser.screenshot(), DESKTOP);
     // At phone width the picture and the track table stay within the page's width.
-    browser.set_viewport(PHONE.0, PHONE.1, true);
-    let overflow = browser.wait_for(
-        "the phone layout",
-        &format!(
-            "return window.innerWidth === {} && {{scroll: document.documentElement.scrollWidth,
-               inner: window.innerWidth}};",
-            PHONE.0
-        ),
-    );
-    assert!(
-        overflow["scroll"].as_u64() <= overflow["inner"].as_u64(),
-        "the live page is wider than a phone: {overflow}"
-    );
+    assert_fits_a_phone(&browser, "the live page");
     browser.set_viewport(DESKTOP.0, DESKTOP.1, false);
 
     // Stop: the session closes normally and the camera is released.

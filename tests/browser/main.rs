@@ -188,6 +188,22 @@ fn severe(log: &[(String, String)]) -> Vec<&(String, String)> {
     log.iter().filter(|(level, _)| level == "SEVERE").collect()
 }
 
+/// Sets the window to a phone's width and checks that nothing on `what` sticks out sideways.
+fn assert_fits_a_phone(browser: &Browser, what: &str) {
+    browser.set_viewport(PHONE.0, PHONE.1, true);
+    let overflow = browser.wait_for(
+        "the phone layout",
+        &format!(
+            "return window.innerWidth === {} && {{scroll: document.documentElement.scrollWidth, inner: window.innerWidth}};",
+            PHONE.0
+        ),
+    );
+    assert!(
+        overflow["scroll"].as_u64() <= overflow["inner"].as_u64(),
+        "{what} is wider than a phone: {overflow}"
+    );
+}
+
 fn maybe_write_screenshot(name: &str, png: &[u8], (width, height): (u32, u32)) {
     let image = image::load_from_memory(png).expect("a PNG screenshot");
     assert_eq!((image.width(), image.height()), (width, height), "{name}");
@@ -403,18 +419,7 @@ fn a_rendered_photo_shows_the_apis_numbers_and_the_poses_axes() {
     // Screenshots: desktop, then phone width, where nothing may stick out sideways.
     browser.run("window.scrollTo(0, 0);", &[]);
     maybe_write_screenshot("setup-page-desktop.png", &browser.screenshot(), DESKTOP);
-    browser.set_viewport(PHONE.0, PHONE.1, true);
-    let overflow = browser.wait_for(
-        "the phone layout",
-        &format!(
-            "return window.innerWidth === {} && {{scroll: document.documentElement.scrollWidth, inner: window.innerWidth}};",
-            PHONE.0
-        ),
-    );
-    assert!(
-        overflow["scroll"].as_u64() <= overflow["inner"].as_u64(),
-        "the page is wider than a phone: {overflow}"
-    );
+    assert_fits_a_phone(&browser, "the page");
     browser.run(
         "window.scrollTo(0, document.getElementById('results').offsetTop);",
         &[],
