@@ -22,6 +22,7 @@ use qrpose_detect::cancel::CancelFlag;
 use qrpose_detect::decode::{self, GrayImage};
 use qrpose_track::{
     Measurement, Outcome, PredictedRegion, TrackReport, TrackStatus, Tracker, TrackerParams,
+    inside_image,
 };
 use std::time::Instant;
 
@@ -273,9 +274,9 @@ fn missed_unconfident(
 fn lost_in_view(track: &TrackReport, camera: &Camera, width_px: f64, height_px: f64) -> bool {
     let pose = track.pose.marker_to_camera(&track.marker);
     track.marker.object_points().iter().all(|m| {
-        camera.project(&pose.transform(m)).is_some_and(|p| {
-            (-0.5..=width_px - 0.5).contains(&p.u()) && (-0.5..=height_px - 0.5).contains(&p.v())
-        })
+        camera
+            .project(&pose.transform(m))
+            .is_some_and(|p| inside_image(&p, width_px, height_px))
     })
 }
 
