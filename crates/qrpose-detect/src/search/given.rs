@@ -16,6 +16,10 @@
 //!    [`QUAD_MAX_SIDE_PX`](super::auto::passes::QUAD_MAX_SIDE_PX), a quadruple-scale
 //!    sharpened read (codes of 1.5-2 px per module); `thorough` adds rqrr's own search.
 //!
+//! A code predicted across the frame's edge (leaving the view) is cut there and cannot be
+//! decoded: its region gets the first read only (it may still be wholly inside, the
+//! prediction being uncertain), not the closer passes.
+//!
 //! Passes are logged as `track crop K <pass>` (K: the region's index in the caller's list).
 //! Before every pass but the very first the budget's deadline and cancel flag are checked
 //! ([`PassLog`]), so a spent or cancelled budget stops between regions and between passes.
@@ -89,6 +93,19 @@ impl SearchRegion {
         }
     }
 
+    /// Whether the region's code can lie wholly in `image`: a quad's predicted corners all
+    /// inside it (a rectangle: always). A code cut by the frame's edge cannot be decoded,
+    /// so a code predicted across the edge (leaving the view) gets the first read only.
+    fn code_may_be_whole(&self, image: &GrayImage) -> bool {
+        let (max_u, max_v) = ((image.width() - 1) as f64, (image.height() - 1) as f64);
+        match self {
+            Self::Quad { corners_px, .. } => corners_px
+                .iter()
+                .all(|p| (0.0..=max_u).contains(&p.u()) && (0.0..=max_v).contains(&p.v())),
+            Self::Rect { .. } => true,
+        }
+    }
+
     /// The pixels of the region that lie in `image`, with their offset; `None` when none do.
     fn crop(&self, image: &GrayImage) -> Option<Crop> {
         let r = self.bounds()?;
@@ -155,7 +172,7 @@ pub(crate) fn find_in_regions(
             |v: &Vec<Candidate>| decoded(v),
             || read_crop(&crop, &RxingDetector::located(), pixels, 1.0),
         );
-        if reads.add(read, &core) || effort == Effort::Fast {
+        if reads.add(read, &core) || effort == Effort::Fast || !region.code_may_be_whole(image) {
             continue;
         }
         for pass in closer_passes(pixels, best, effort) {
@@ -284,5 +301,28 @@ mod tests {
         let mut fast = PassLog::new(std::time::Duration::from_secs(60));
         find_in_regions(&frame, &[quad(50.0, 150.0, 10.0)], Effort::Fast, &mut fast);
         assert_eq!(fast.passes.len(), 1);
+    }
+
+    #[test]
+    fn a_code_predicted_across_the_frames_edge_gets_the_first_read_only() {
+        let frame = image(300, 200);
+        let mut log = PassLog::new(std::time::Duration::from_secs(60));
+        // Corners 180..260 down a 200-row frame: the code would be cut by the bottom edge.
+        find_in_regions(
+            &frame,
+            &[quad(180.0, 260.0, 10.0)],
+            Effort::Balanced,
+            &mut log,
+        );
+        let names: Vec<&str> = log.passes.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(names, ["track crop 0 rxing"]);
+        // A rectangle names no code: every pass runs on it.
+        let mut rect = PassLog::new(std::time::Duration::from_secs(60));
+        let whole = SearchRegion::Rect {
+            min_px: PixelPoint::new(180.0, 100.0),
+            max_px: PixelPoint::new(299.0, 199.0),
+        };
+        find_in_regions(&frame, &[whole], Effort::Balanced, &mut rect);
+        assert!(rect.passes.len() > 1, "{:?}", rect.passes);
     }
 }
