@@ -20,8 +20,9 @@ ground truth: `codes[].payload` and `codes[].truth.corners_px`; the camera is
 `camera.fx_px ...`. RENDER_BIN (--render-bin) defaults to --qrpose-bin; pass the same
 --render-bin to runs that should see identical frames (the output prints a hash of all frames).
 
-Step 2, the reading: `qrpose estimate --image OUT/scene-SEED.jpg --fx-px .. --fy-px .. --cx-px ..
---cy-px .. --marker-size-mm 50 [--qrpose-flag ...]` with the renderer's camera (time = its
+Step 2, the reading: `POST /v1/pose/image` of OUT/scene-SEED.jpg to one `qrpose serve` kept
+running (`--qrpose-via cli`: `qrpose estimate --image ... [--qrpose-flag ...]`, a new process
+each) with the renderer's camera and marker_size_mm=50 (time = its
 `timing_ms.decode + timing_ms.detect`), and zxing-cpp (OpenCV's greyscale decode +
 `read_barcodes(formats=QRCode)`, timed together; Pillow's decode timed too, as a second ratio)
 on the same bytes, as scripts/photo_bench.py
@@ -192,7 +193,8 @@ def main():
         rec = {"seed": seed, "path": str(path), "sha256": hashlib.sha256(data).hexdigest(),
                "size": [w, h], "effects": fx, "camera": cam, "render_cmd": cmd, "codes": truth}
         q = pc.run_qrpose(args.qrpose_bin, path, w, h, flags, args.timeout, args.qrpose_repeat,
-                          intrinsics=(cam["fx_px"], cam["fy_px"], cam["cx_px"], cam["cy_px"]))
+                          intrinsics=(cam["fx_px"], cam["fy_px"], cam["cx_px"], cam["cy_px"]),
+                          via=args.qrpose_via)
         z = None if args.no_zxing else pc.run_zxing(data, args.repeat, args.zxing_decode)
         for name, res in (("qrpose", q), ("zxing", z)):
             if res is None:

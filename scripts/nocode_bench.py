@@ -23,8 +23,9 @@ manifest's hash, seed, sizes, margin, tries, quality, Pillow version) match and 
 there with its recorded hash, and rebuilds them otherwise. Photos are never copied: only the
 crops, under target/ (git-ignored).
 
-Step 2, the timing: for each crop, `qrpose estimate --image CROP ...` (time = its
-`timing_ms.decode + timing_ms.detect`; intrinsics F = max(w, h), centre (w-1)/2, (h-1)/2;
+Step 2, the timing: for each crop, `POST /v1/pose/image` to one `qrpose serve` kept running
+(`--qrpose-via cli`: `qrpose estimate --image CROP ...`, a new process each; time = the
+answer's `timing_ms.decode + timing_ms.detect`; intrinsics F = max(w, h), centre (w-1)/2, (h-1)/2;
 extra --qrpose-flag values forwarded as given) and right after it zxing-cpp (OpenCV's
 `imdecode(..., IMREAD_GRAYSCALE)` + `read_barcodes(formats=QRCode)`, median of --repeat runs;
 Pillow's RGB decode + convert('L') timed too, as a second figure), same bytes. Prints count,
@@ -169,7 +170,8 @@ def main():
         path = Path(args.out) / c["file"]
         data = path.read_bytes()
         w, h = c["size"]
-        q = pc.run_qrpose(args.qrpose_bin, path, w, h, flags, args.timeout, args.qrpose_repeat)
+        q = pc.run_qrpose(args.qrpose_bin, path, w, h, flags, args.timeout, args.qrpose_repeat,
+                         via=args.qrpose_via)
         z = None if args.no_zxing else pc.run_zxing(data, args.repeat, args.zxing_decode)
         rec = dict(c, qrpose=q, zxing=z)
         records.append(rec)
@@ -187,7 +189,7 @@ def main():
     n_skip = len({s["source"] for s in crop_set["skipped"]})
     print(f"qrpose: `{env['qrpose_bin']}` (built {env['qrpose_bin_mtime']}, tree {env['git_head']}), "
           f"flags: `{' '.join(flags) or '(none)'}`; zxing-cpp {env['zxing_cpp']} (PyPI), Pillow "
-          f"{env['pillow']}, OpenCV {env['opencv']}, primary decode `{args.zxing_decode}`, runs per image: qrpose {args.qrpose_repeat}, zxing-cpp {args.repeat} (median). "
+          f"{env['pillow']}, OpenCV {env['opencv']}, primary decode `{args.zxing_decode}`, runs per image: qrpose {args.qrpose_repeat} (via {args.qrpose_via}), zxing-cpp {args.repeat} (median). "
           f"{len(crop_set['crops'])} crops from {len({c['source'] for c in crop_set['crops']})} photos "
           f"(seed {args.seed}, margin {args.margin:g}; {len(crop_set['skipped'])} photo/size pairs "
           f"skipped: photo too small or no code-free window; {n_skip} photos lack one size or both), JPEG q90, EXIF orientation not applied. Times in ms: "

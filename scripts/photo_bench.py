@@ -18,10 +18,13 @@ convex hulls, so corner order does not matter); matching is one-to-one, greedy b
 manifest whose `corners` are null but which has `expected_texts` (the zxing-cpp sample set),
 codes are matched by payload instead, and the output says so.
 
-Per photo: `qrpose estimate --image PHOTO --fx-px F --fy-px F --cx-px (w-1)/2 --cy-px (h-1)/2
---marker-size-mm 50 [--qrpose-flag ...]` with F = max(w, h) (intrinsics only matter for the
-pose); time = its `timing_ms.decode + timing_ms.detect`. A non-zero exit, a timeout
-(--timeout, 60 s) or unreadable output counts as nothing read and is listed. zxing-cpp:
+Per photo: `POST /v1/pose/image?fx_px=F&fy_px=F&cx_px=(w-1)/2&cy_px=(h-1)/2&marker_size_mm=50`
+(and the --qrpose-flag values as query parameters) to one `qrpose serve` started for the
+run and warmed by one request, as an integrator runs it (`--qrpose-via cli`: `qrpose estimate
+--image PHOTO ...`, a new process per photo, whose cold start lands in its timing), with
+F = max(w, h) (intrinsics only matter for the pose); time = the answer's `timing_ms.decode +
+timing_ms.detect`. An error status or exit, a timeout (--timeout, 60 s) or an unreadable
+answer counts as nothing read and is listed. zxing-cpp:
 OpenCV's decode to 8-bit grey (`cv2.imdecode(..., cv2.IMREAD_GRAYSCALE)`, libjpeg-turbo) +
 `read_barcodes(formats=QRCode)`, timed together (median of --repeat runs), run right after
 qrpose on the same bytes (alternated photo by photo); Pillow's decode (RGB + convert('L')) is
@@ -71,7 +74,8 @@ def bench_image(root, entry, args, flags):
     labels = entry.get("corners")
     by_text = labels is None
     rec["codes"] = len(entry.get("expected_texts") or []) if by_text else len(labels)
-    q = pc.run_qrpose(args.qrpose_bin, path, w, h, flags, args.timeout, args.qrpose_repeat)
+    q = pc.run_qrpose(args.qrpose_bin, path, w, h, flags, args.timeout, args.qrpose_repeat,
+                     via=args.qrpose_via)
     if q["ok"] and q["size"] != [w, h]:
         q["note"] = "; ".join(filter(None, [q.get("note"), f"qrpose saw {q['size']}, Pillow {[w, h]}"]))
     z = None if args.no_zxing else pc.run_zxing(data, args.repeat, args.zxing_decode)
@@ -214,7 +218,7 @@ def main():
 
     print(f"qrpose: `{env['qrpose_bin']}` (built {env['qrpose_bin_mtime']}, tree {env['git_head']}), "
           f"flags: `{' '.join(flags) or '(none)'}`; zxing-cpp {env['zxing_cpp']} (PyPI), Pillow "
-          f"{env['pillow']}, OpenCV {env['opencv']}, primary decode `{args.zxing_decode}`, runs per image: qrpose {args.qrpose_repeat}, zxing-cpp {args.repeat} (median); "
+          f"{env['pillow']}, OpenCV {env['opencv']}, primary decode `{args.zxing_decode}`, runs per image: qrpose {args.qrpose_repeat} (via {args.qrpose_via}), zxing-cpp {args.repeat} (median); "
           f"EXIF orientation {env['exif_orientation']}.")
     print(f"Read = decoded quadrilateral with IoU >= 0.5 to a label" if not by_text_any else
           "Read = expected payload decoded (this manifest has no corner labels)", end="")
