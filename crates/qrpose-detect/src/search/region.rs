@@ -7,7 +7,9 @@
 //! that the whole symbol is inside. Regions that overlap a symbol already read, or another
 //! region, are dropped ([`unread_regions`]), and so are triples whose three finder patterns
 //! each lie inside a symbol already read: a finder pattern belongs to one symbol, so such a
-//! triple is made of the patterns of codes read (neighbouring codes on a sheet of many).
+//! triple is made of the patterns of codes read (neighbouring codes on a sheet of many). A
+//! triple whose patterns are farther apart, in modules of their size, than a version 40
+//! symbol's makes no region at all ([`Region::from_finder_centres`]).
 
 // Pixel indices are floats clamped into the image before the cast.
 #![allow(clippy::cast_possible_truncation)]
@@ -39,9 +41,17 @@ pub(crate) struct Region {
 /// dozens of finder-like triples, and each costs a few crop passes.
 pub(crate) const MAX_REGIONS: usize = 16;
 
+/// The most modules across a QR symbol (version 40, ISO/IEC 18004 Table 1).
+const MAX_MODULES: f64 = 177.0;
+
 impl Region {
     /// The region of a finder-pattern triple: centres `tl`, `tr`, `bl` (px) and the finder
-    /// patterns' size `finder_px` (7 modules).
+    /// patterns' size `finder_px` (7 modules, the largest of the three). `None` when the
+    /// triple spans more modules than any symbol has: finder centres are 3.5 modules in
+    /// from the symbol's edges, so a symbol of N modules has them N − 7 modules apart, and
+    /// a triple whose mean side is more than [`MAX_MODULES`] − 7 modules of the largest
+    /// pattern's size (which gives the fewest modules) is clutter or patterns of different
+    /// codes, not a symbol.
     #[must_use]
     pub(crate) fn from_finder_centres(
         tl: PixelPoint,
@@ -49,6 +59,11 @@ impl Region {
         bl: PixelPoint,
         finder_px: f64,
     ) -> Option<Self> {
+        let module_px = finder_px / 7.0;
+        let mean_side_px = 0.5 * (distance(&tl, &tr) + distance(&tl, &bl));
+        if module_px > 0.0 && mean_side_px / module_px > MAX_MODULES - 7.0 {
+            return None;
+        }
         let br = PixelPoint::new(tr.u() + bl.u() - tl.u(), tr.v() + bl.v() - tl.v());
         Self::around(&[tl, tr, br, bl], finder_px).map(|r| Self {
             finder_px,
@@ -125,6 +140,11 @@ const SAME_PLACE_OVERLAP: f64 = 0.5;
 #[must_use]
 pub(crate) fn same_place(a: &Region, b: &Region) -> bool {
     a.overlap(b) > SAME_PLACE_OVERLAP
+}
+
+/// The distance between two points, px.
+fn distance(a: &PixelPoint, b: &PixelPoint) -> f64 {
+    (a.u() - b.u()).hypot(a.v() - b.v())
 }
 
 /// Whether `p` lies inside the quadrilateral `quad` (corners in order around it, either
@@ -292,6 +312,27 @@ mod tests {
         let r = Region::from_finder_centres(c(3.5, 3.5), c(17.5, 3.5), c(3.5, 17.5), 7.0 * m)
             .expect("a region");
         assert!(r.lo_u <= o && r.lo_v <= o && r.hi_u >= o + 84.0 && r.hi_v >= o + 84.0);
+    }
+
+    #[test]
+    fn a_triple_wider_than_a_version_40_symbol_makes_no_region() {
+        // 4 px modules: a version 40 symbol (177 modules) has its finder centres 170
+        // modules = 680 px apart.
+        let p = |u: f64, v: f64| PixelPoint::new(u, v);
+        assert!(
+            Region::from_finder_centres(p(0.0, 0.0), p(680.0, 0.0), p(0.0, 680.0), 28.0).is_some()
+        );
+        assert!(
+            Region::from_finder_centres(p(0.0, 0.0), p(700.0, 0.0), p(0.0, 700.0), 28.0).is_none()
+        );
+        // Unequal sides: their mean counts (1000 and 300 px: 162.5 modules).
+        assert!(
+            Region::from_finder_centres(p(0.0, 0.0), p(1000.0, 0.0), p(0.0, 300.0), 28.0).is_some()
+        );
+        // A 2 px finder pattern 400 px from its partners: 1400 modules, clutter.
+        assert!(
+            Region::from_finder_centres(p(0.0, 0.0), p(400.0, 0.0), p(0.0, 400.0), 14.0).is_none()
+        );
     }
 
     #[test]
