@@ -36,17 +36,32 @@
 //! hypothesis, dropped if its probability is below `branch_prune_probability`. Re-opening
 //! lets frames that see clearly undo a branch chosen when they did not.
 //!
+//! A candidate of the frame that no updated child reaches (each child's branch being the
+//! candidate nearest it in rotation) is re-opened too, from the heaviest updated child c:
+//! l = l_c + ln π − ½(e_k − e_c). Two poses a few degrees apart (a small code far away)
+//! often lie in one basin of a loose prediction, so the update from either start lands on
+//! the same optimum and the other branch would be lost unweighed. π is REOPEN_PRIOR once
+//! the track has held two hypotheses (`contested`: one lost on evidence), and 1 before: a
+//! branch never weighed starts on the image's odds, as the two candidates of a track's
+//! first frame do.
+//!
 //! A new track starts with one hypothesis per candidate of its first frame, log-weights
-//! ln(1 − p) and ln p. The reported pose is the heavier hypothesis; its covariance is the
-//! mixture's spread about it, Σᵢ wᵢ·(Pᵢ + dᵢdᵢᵀ), dᵢ the pose difference of hypothesis i
-//! from the reported one, so an unresolved ambiguity shows in the covariance.
+//! ln(1 − p) and ln p. The reported pose is the heavier hypothesis, with the mixture's
+//! spread about it, Σᵢ wᵢ·(Pᵢ + dᵢdᵢᵀ), dᵢ the pose difference of hypothesis i from the
+//! reported one, so an unresolved ambiguity shows in the covariance; but two hypotheses
+//! that overlap (their separation, the squared Mahalanobis distance over the sum of their
+//! covariances, at most [`REPORT_MERGE_D2`], χ² with 6 degrees of freedom at 95 %) are one
+//! uncertain pose, not two: their moment-matched mean is reported, with the spread about it
+//! (the minimum-mean-square-error estimate of the mixture; Salmond, "Mixture reduction
+//! algorithms for target tracking in clutter", SPIE 1305, 1990; Runnalls, "Kullback-Leibler
+//! approach to Gaussian mixture reduction", IEEE TAES 43(3), 2007).
 
 use crate::filter::{Eskf, ProcessNoise};
 use crate::imm::{Imm, ImmPosterior, MANOEUVRING, MODES};
 use crate::measurement::{Measurement, PoseCandidate};
 use crate::params::TrackerParams;
 use crate::so3::angle_between;
-use nalgebra::{Matrix6, Vector3};
+use nalgebra::{Matrix6, SMatrix, Vector3};
 
 /// Two children whose poses differ by at most this squared Mahalanobis distance (over the
 /// sum of their covariances, 6 dof) are one hypothesis: merged.
@@ -54,6 +69,11 @@ const MERGE_D2: f64 = 1.0;
 
 /// Prior probability, given to a re-opened branch, that the track's branch history is wrong.
 pub(crate) const REOPEN_PRIOR: f64 = 1e-3;
+
+/// Two hypotheses whose poses are at most this squared Mahalanobis distance apart (over the
+/// sum of their covariances; χ² with 6 degrees of freedom at 95 %) are reported as their
+/// moment-matched mean (module docs).
+pub(crate) const REPORT_MERGE_D2: f64 = 12.592;
 
 /// One branch hypothesis.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,6 +110,8 @@ pub(crate) struct Fused {
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct Branches {
     hyps: Vec<Hypothesis>,
+    /// The track has held two hypotheses at once (module docs: the re-open prior).
+    contested: bool,
 }
 
 fn start_imm(pose: &PoseCandidate, velocity: Vector3<f64>, params: &TrackerParams) -> Imm {
@@ -127,7 +149,8 @@ impl Branches {
                 0.0,
             ));
         }
-        let mut b = Self { hyps };
+        let contested = hyps.len() > 1;
+        let mut b = Self { hyps, contested };
         b.normalise();
         b
     }
@@ -189,6 +212,34 @@ impl Branches {
         for h in &mut self.hyps {
             h.log_weight -= max;
         }
+    }
+
+    /// The pose to report and its covariance (module docs): the moment-matched mean of two
+    /// hypotheses within [`REPORT_MERGE_D2`] of each other and their spread about it; else
+    /// the heaviest hypothesis and [`Self::mixture_pose_covariance`].
+    pub fn reported_pose(&self) -> (Eskf, Matrix6<f64>) {
+        let reported = self.reported();
+        let overlap = match self.hyps.as_slice() {
+            [a, b] => separation(&a.estimate, &b.estimate) <= REPORT_MERGE_D2,
+            _ => false,
+        };
+        if !overlap {
+            return (reported.clone(), self.mixture_pose_covariance());
+        }
+        let weights = self.probabilities();
+        let mean_d: SMatrix<f64, 12, 1> = self
+            .hyps
+            .iter()
+            .zip(&weights)
+            .map(|(h, w)| h.estimate.minus(reported) * *w)
+            .sum();
+        let mean = reported.plus(&mean_d);
+        let mut p = Matrix6::zeros();
+        for (h, w) in self.hyps.iter().zip(&weights) {
+            let d = h.estimate.pose_difference(&mean);
+            p += (h.estimate.pose_covariance() + d * d.transpose()) * *w;
+        }
+        (mean, p)
     }
 
     /// Σᵢ wᵢ·(Pᵢ + dᵢdᵢᵀ) about the reported hypothesis (module docs).
@@ -299,6 +350,7 @@ impl Branches {
                 }
             }
         }
+        Self::reopen_unreached(&mut children, m, params, self.contested);
         let first = self.select(children, params);
         let picked_alternative = m.alternative.is_some_and(|a| {
             let r = &first.hyp.estimate.rotation;
@@ -308,6 +360,55 @@ impl Branches {
             any: first.fused,
             picked_alternative,
             d2: first.cost,
+        }
+    }
+
+    /// Re-opens each candidate of the frame on whose branch no updated child lies (module
+    /// docs), from the heaviest updated child c: l = l_c + ln π − ½(e_k − e_c), π =
+    /// [`REOPEN_PRIOR`] when the track is `contested`, else 1. Nothing when no child was
+    /// updated (the candidates were re-opened already) or the frame has one candidate.
+    fn reopen_unreached(
+        children: &mut Vec<Child>,
+        m: &Measurement,
+        params: &TrackerParams,
+        contested: bool,
+    ) {
+        let candidates = m.candidates();
+        let [(first, _), (second, _)] = candidates.as_slice() else {
+            return;
+        };
+        let branch_of = |e: &Eskf| {
+            usize::from(
+                angle_between(&e.rotation, &second.rotation)
+                    < angle_between(&e.rotation, &first.rotation),
+            )
+        };
+        let reached: Vec<usize> = children
+            .iter()
+            .filter(|c| c.fused)
+            .map(|c| branch_of(&c.hyp.estimate))
+            .collect();
+        let Some(best) = children
+            .iter()
+            .filter(|c| c.fused && c.cost.is_some())
+            .max_by(|a, b| a.hyp.log_weight.total_cmp(&b.hyp.log_weight))
+        else {
+            return;
+        };
+        let e_best = candidates[branch_of(&best.hyp.estimate)].1;
+        let (log_weight, velocity) = (best.hyp.log_weight, best.hyp.estimate.velocity_mm_s);
+        let prior = if contested { REOPEN_PRIOR } else { 1.0 };
+        for (k, (pose, e)) in candidates.iter().enumerate() {
+            if !reached.contains(&k) {
+                children.push(Child {
+                    hyp: Hypothesis::new(
+                        start_imm(pose, velocity, params),
+                        log_weight + prior.ln() - 0.5 * (e - e_best),
+                    ),
+                    fused: true,
+                    cost: None,
+                });
+            }
         }
     }
 
@@ -341,6 +442,7 @@ impl Branches {
             }
         }
         self.normalise();
+        self.contested |= self.hyps.len() > 1;
         first
     }
 }
@@ -372,4 +474,113 @@ fn separation(a: &Eskf, b: &Eskf) -> f64 {
     let d = a.pose_difference(b);
     let s = a.pose_covariance() + b.pose_covariance();
     s.cholesky().map_or(f64::INFINITY, |c| d.dot(&c.solve(&d)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measurement::{Alternative, Corners};
+    use crate::so3::exp;
+    use nalgebra::{Rotation3, Vector2};
+    use qrpose_core::geometry::marker::Marker;
+
+    /// A pose turned by `ry` rad about y, 1 m ahead, with rotation σ `rotation_sigma` rad and
+    /// position σ 1 mm.
+    fn candidate(ry: f64, rotation_sigma: f64) -> PoseCandidate {
+        let mut covariance = Matrix6::identity();
+        for i in 0..3 {
+            covariance[(i, i)] = rotation_sigma * rotation_sigma;
+        }
+        PoseCandidate {
+            rotation: exp(&Vector3::new(0.0, ry, 0.0)),
+            centre_mm: Vector3::new(0.0, 0.0, 1000.0),
+            covariance,
+        }
+    }
+
+    fn hypothesis(pose: &PoseCandidate, log_weight: f64) -> Hypothesis {
+        let params = TrackerParams::default();
+        Hypothesis::new(start_imm(pose, Vector3::zeros(), &params), log_weight)
+    }
+
+    fn angle(a: &Rotation3<f64>, b: &Rotation3<f64>) -> f64 {
+        angle_between(a, b)
+    }
+
+    #[test]
+    fn overlapping_hypotheses_are_reported_as_their_mean_and_distinct_ones_as_the_heavier() {
+        // 0.1 rad apart with σ 0.05 rad each: squared separation 2, one uncertain pose.
+        let (a, b) = (candidate(0.05, 0.05), candidate(-0.05, 0.05));
+        let near = Branches {
+            hyps: vec![hypothesis(&a, 0.0), hypothesis(&b, 0.0)],
+            contested: true,
+        };
+        let (mean, p) = near.reported_pose();
+        assert!(angle(&mean.rotation, &Rotation3::identity()) < 1e-6);
+        // The spread about the mean: σ² + 0.05² about y.
+        assert!(
+            (p[(1, 1)] - 2.0 * 0.05 * 0.05).abs() < 1e-6,
+            "{}",
+            p[(1, 1)]
+        );
+        // σ 0.01 rad: squared separation 50, two poses; the heavier is reported as it is.
+        let (a, b) = (candidate(0.05, 0.01), candidate(-0.05, 0.01));
+        let far = Branches {
+            hyps: vec![hypothesis(&a, 0.0), hypothesis(&b, -1.0)],
+            contested: true,
+        };
+        let (reported, p) = far.reported_pose();
+        assert!(angle(&reported.rotation, &a.rotation) < 1e-12);
+        assert_eq!(p, far.mixture_pose_covariance());
+    }
+
+    fn measurement(best: PoseCandidate, alternative: PoseCandidate, p_alt: f64) -> Measurement {
+        Measurement {
+            payload: None,
+            marker: Marker::try_new(50.0).expect("a marker"),
+            corners: Corners {
+                ideal_px: [Vector2::zeros(); 4],
+                fx: 1000.0,
+                fy: 1000.0,
+                variance_px2: 0.01,
+            },
+            best,
+            alternative: Some(Alternative {
+                pose: alternative,
+                probability: p_alt,
+            }),
+            ambiguous: true,
+            best_at_corner_sigma: best.covariance,
+        }
+    }
+
+    fn updated(pose: &PoseCandidate) -> Child {
+        Child {
+            hyp: hypothesis(pose, 0.0),
+            fused: true,
+            cost: Some(1.0),
+        }
+    }
+
+    #[test]
+    fn a_branch_no_child_reaches_is_reopened_on_the_image_odds_until_the_track_was_contested() {
+        let params = TrackerParams::default();
+        let (best, alternative) = (candidate(0.05, 0.05), candidate(-0.05, 0.05));
+        let m = measurement(best, alternative, 0.4);
+        let odds = (0.4_f64 / 0.6).ln();
+        // Never contested: the alternative joins on the image's odds alone.
+        let mut children = vec![updated(&best)];
+        Branches::reopen_unreached(&mut children, &m, &params, false);
+        assert_eq!(children.len(), 2);
+        assert!(angle(&children[1].hyp.estimate.rotation, &alternative.rotation) < 1e-12);
+        assert!((children[1].hyp.log_weight - odds).abs() < 1e-9);
+        // Contested: the re-open prior too.
+        let mut children = vec![updated(&best)];
+        Branches::reopen_unreached(&mut children, &m, &params, true);
+        assert!((children[1].hyp.log_weight - (odds + REOPEN_PRIOR.ln())).abs() < 1e-9);
+        // Both branches reached: nothing re-opened.
+        let mut children = vec![updated(&best), updated(&alternative)];
+        Branches::reopen_unreached(&mut children, &m, &params, false);
+        assert_eq!(children.len(), 2);
+    }
 }

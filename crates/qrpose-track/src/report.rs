@@ -90,8 +90,9 @@ pub struct TrackReport {
     /// frame was ambiguous alone (or the track took the frame's alternative), and the
     /// other branch now has probability below `ambiguity_probability`.
     pub ambiguity_resolved: bool,
-    /// Probability, from the track's history, that `pose` is on the right branch of the
-    /// planar pair (1 when only one branch is left).
+    /// Probability, from the track's history, that the heavier of its planar-branch
+    /// hypotheses is the right one (1 when only one is left). `pose` is that hypothesis,
+    /// or, when the two overlap (one uncertain pose rather than two), their weighted mean.
     pub branch_probability: f64,
     /// Probability of the manoeuvring motion model (large process noise) against the
     /// steady one (at rest or at a constant velocity).

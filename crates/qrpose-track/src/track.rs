@@ -195,7 +195,7 @@ impl Track {
 
     /// The report of the track's current state.
     pub fn report(&self, params: &TrackerParams) -> TrackReport {
-        let f = self.branches.reported();
+        let (f, covariance) = self.branches.reported_pose();
         TrackReport {
             id: self.id.clone(),
             payload: self.payload.clone(),
@@ -206,7 +206,7 @@ impl Track {
             pose: FilteredPose {
                 rotation: f.rotation,
                 centre_mm: f.centre_mm,
-                covariance: self.branches.mixture_pose_covariance() + self.frame_covariance,
+                covariance: covariance + self.frame_covariance,
                 velocity_mm_s: f.velocity_mm_s,
                 angular_velocity_rad_s: f.angular_velocity_rad_s,
             },
