@@ -23,15 +23,7 @@ fn scratch(name: &str) -> PathBuf {
 #[test]
 fn photos_of_a_printed_code_give_the_camera_and_a_file_the_site_reads() {
     let dir = scratch("photos");
-    let paths: Vec<PathBuf> = calibration::photos()
-        .iter()
-        .enumerate()
-        .map(|(k, jpeg)| {
-            let path = dir.join(format!("view_{k}.jpg"));
-            std::fs::write(&path, jpeg).expect("writes a photo");
-            path
-        })
-        .collect();
+    let paths = calibration::photo_files(&dir);
     let out = dir.join("front.yaml");
     let run = Command::new(BIN)
         .arg("calibrate")

@@ -24,20 +24,6 @@ const FOCAL_TOL: f64 = 0.002;
 /// Largest principal point error, px.
 const PRINCIPAL_POINT_TOL_PX: f64 = 1.5;
 
-/// The rendered photos as files.
-fn photo_files() -> Vec<PathBuf> {
-    let dir = scratch_dir("browser-calibration");
-    photos::photos()
-        .iter()
-        .enumerate()
-        .map(|(k, bytes)| {
-            let path = dir.join(format!("view_{k:02}.jpg"));
-            std::fs::write(&path, bytes).expect("a scratch file");
-            path
-        })
-        .collect()
-}
-
 /// Drops `files` on the tab's drop zone: WebDriver cannot drag from the desktop, so a file
 /// input of the test's own takes them and a `drop` event carries its files to the zone.
 fn drop_files(browser: &Browser, files: &[PathBuf]) {
@@ -90,7 +76,7 @@ fn download(browser: &Browser, id: &str) -> String {
 fn dropped_photos_of_a_printed_code_show_its_camera_views_residuals_coverage_and_files() {
     let _one = lock();
     let server = Server::start();
-    let files = photo_files();
+    let files = photos::photo_files(&scratch_dir("browser-calibration"));
     let browser = Browser::start(DESKTOP.0, DESKTOP.1);
     open_page(&browser, &server);
     browser.wait_for(

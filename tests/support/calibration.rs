@@ -9,6 +9,7 @@ use qrpose::geometry::camera::{Camera, Distortion, DistortionModel};
 use qrpose::geometry::frames::PixelPoint;
 use qrpose::geometry::marker::Marker;
 use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
+use std::path::{Path, PathBuf};
 
 /// Width and height of the photos, px.
 pub const SIZE_PX: (u32, u32) = (640, 480);
@@ -40,6 +41,21 @@ const VIEWS: [ViewSpec; 8] = [
     ((0.3, 0.5), 400.0, 25.0, 180.0, 150.0),
     ((0.7, 0.5), 450.0, 35.0, 270.0, -120.0),
 ];
+
+/// [`photos`] written into `dir` as `view_00.jpg`, `view_01.jpg`, …, their paths in order
+/// (for the tests that hand files to the CLI or to a browser).
+#[allow(dead_code)] // tests/api sends the bytes, not files
+pub fn photo_files(dir: &Path) -> Vec<PathBuf> {
+    photos()
+        .iter()
+        .enumerate()
+        .map(|(k, jpeg)| {
+            let path = dir.join(format!("view_{k:02}.jpg"));
+            std::fs::write(&path, jpeg).expect("writes a photo");
+            path
+        })
+        .collect()
+}
 
 /// The photos as JPEG files, in [`VIEWS`] order.
 pub fn photos() -> Vec<Vec<u8>> {
