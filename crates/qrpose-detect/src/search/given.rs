@@ -94,14 +94,16 @@ impl SearchRegion {
     }
 
     /// Whether the region's code can lie wholly in `image`: a quad's predicted corners all
-    /// inside it (a rectangle: always). A code cut by the frame's edge cannot be decoded,
-    /// so a code predicted across the edge (leaving the view) gets the first read only.
+    /// inside it, between its outer pixel edges (−0.5 to width − 0.5: integer coordinates
+    /// are pixel centres; a rectangle: always). A code cut by the frame's edge cannot be
+    /// decoded, so a code predicted across the edge (leaving the view) gets the first read
+    /// only.
     fn code_may_be_whole(&self, image: &GrayImage) -> bool {
-        let (max_u, max_v) = ((image.width() - 1) as f64, (image.height() - 1) as f64);
+        let (width, height) = (image.width() as f64, image.height() as f64);
         match self {
-            Self::Quad { corners_px, .. } => corners_px
-                .iter()
-                .all(|p| (0.0..=max_u).contains(&p.u()) && (0.0..=max_v).contains(&p.v())),
+            Self::Quad { corners_px, .. } => corners_px.iter().all(|p| {
+                (-0.5..=width - 0.5).contains(&p.u()) && (-0.5..=height - 0.5).contains(&p.v())
+            }),
             Self::Rect { .. } => true,
         }
     }
@@ -316,6 +318,15 @@ mod tests {
         );
         let names: Vec<&str> = log.passes.iter().map(|p| p.name.as_str()).collect();
         assert_eq!(names, ["track crop 0 rxing"]);
+        // Corners up to 199.4, inside the last row's pixels (it ends at 199.5): every pass.
+        let mut inside = PassLog::new(std::time::Duration::from_secs(60));
+        find_in_regions(
+            &frame,
+            &[quad(100.0, 199.4, 10.0)],
+            Effort::Balanced,
+            &mut inside,
+        );
+        assert!(inside.passes.len() > 1, "{:?}", inside.passes);
         // A rectangle names no code: every pass runs on it.
         let mut rect = PassLog::new(std::time::Duration::from_secs(60));
         let whole = SearchRegion::Rect {
