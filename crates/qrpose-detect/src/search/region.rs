@@ -60,7 +60,8 @@ impl Region {
         finder_px: f64,
     ) -> Option<Self> {
         let module_px = finder_px / 7.0;
-        let mean_side_px = 0.5 * (distance(&tl, &tr) + distance(&tl, &bl));
+        let mean_side_px =
+            0.5 * (nalgebra::distance(&tl.0, &tr.0) + nalgebra::distance(&tl.0, &bl.0));
         if module_px > 0.0 && mean_side_px / module_px > MAX_MODULES - 7.0 {
             return None;
         }
@@ -140,11 +141,6 @@ const SAME_PLACE_OVERLAP: f64 = 0.5;
 #[must_use]
 pub(crate) fn same_place(a: &Region, b: &Region) -> bool {
     a.overlap(b) > SAME_PLACE_OVERLAP
-}
-
-/// The distance between two points, px.
-fn distance(a: &PixelPoint, b: &PixelPoint) -> f64 {
-    (a.u() - b.u()).hypot(a.v() - b.v())
 }
 
 /// Whether `p` lies inside the quadrilateral `quad` (corners in order around it, either
