@@ -13,7 +13,7 @@
 //! `crates/qrpose-core/src/estimate/refine.rs`).
 
 use crate::params::TrackerParams;
-use crate::so3::skew;
+use crate::so3::{angle_between, skew};
 use nalgebra::{Matrix3, Matrix6, Rotation3, SMatrix, Vector2, Vector3};
 use qrpose_core::estimate::PoseEstimate;
 use qrpose_core::geometry::camera::{Camera, ImageUnit};
@@ -225,6 +225,14 @@ impl Measurement {
     /// The other pose of the planar ambiguity, when the two are distinct.
     pub fn alternative(&self) -> Option<&Alternative> {
         self.alternative.as_ref()
+    }
+
+    /// The index in [`Self::candidates`] of the candidate nearer `rotation` (angle between
+    /// rotations): 1 when the alternative is strictly nearer, else 0.
+    pub(crate) fn nearer_candidate(&self, rotation: &Rotation3<f64>) -> usize {
+        usize::from(self.alternative.is_some_and(|a| {
+            angle_between(rotation, &a.pose.rotation) < angle_between(rotation, &self.best.rotation)
+        }))
     }
 
     /// The candidates with their image evidence e_k = −2·ln P(k | image): index 0 the best,

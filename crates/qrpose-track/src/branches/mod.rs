@@ -60,7 +60,6 @@ use crate::filter::{Eskf, ProcessNoise};
 use crate::imm::{Imm, ImmPosterior, MANOEUVRING, MODES};
 use crate::measurement::{Measurement, PoseCandidate};
 use crate::params::TrackerParams;
-use crate::so3::angle_between;
 use nalgebra::{Matrix6, SMatrix, Vector3};
 
 /// Two children whose poses differ by at most this squared Mahalanobis distance (over the
@@ -132,6 +131,22 @@ struct Child {
     fused: bool,
     /// J of its update (the least one when it only predicted); `None` when re-opened.
     cost: Option<f64>,
+}
+
+impl Child {
+    /// A branch re-opened at `pose`: a fresh filter with `velocity_mm_s`, counted as fused.
+    fn reopened(
+        pose: &PoseCandidate,
+        velocity_mm_s: Vector3<f64>,
+        log_weight: f64,
+        params: &TrackerParams,
+    ) -> Self {
+        Self {
+            hyp: Hypothesis::new(start_imm(pose, velocity_mm_s, params), log_weight),
+            fused: true,
+            cost: None,
+        }
+    }
 }
 
 impl Branches {
@@ -338,24 +353,19 @@ impl Branches {
             });
             if i == heaviest {
                 for (pose, e) in m.candidates() {
-                    let imm = start_imm(&pose, h.estimate.velocity_mm_s, params);
-                    children.push(Child {
-                        hyp: Hypothesis::new(
-                            imm,
-                            h.log_weight + REOPEN_PRIOR.ln() - 0.5 * (gate + ln_det + e),
-                        ),
-                        fused: true,
-                        cost: None,
-                    });
+                    children.push(Child::reopened(
+                        &pose,
+                        h.estimate.velocity_mm_s,
+                        h.log_weight + REOPEN_PRIOR.ln() - 0.5 * (gate + ln_det + e),
+                        params,
+                    ));
                 }
             }
         }
         Self::reopen_unreached(&mut children, m, params, self.contested);
         let first = self.select(children, params);
-        let picked_alternative = m.alternative.is_some_and(|a| {
-            let r = &first.hyp.estimate.rotation;
-            first.fused && angle_between(r, &a.pose.rotation) < angle_between(r, &m.best.rotation)
-        });
+        let picked_alternative =
+            first.fused && m.nearer_candidate(&first.hyp.estimate.rotation) == 1;
         Fused {
             any: first.fused,
             picked_alternative,
@@ -374,19 +384,13 @@ impl Branches {
         contested: bool,
     ) {
         let candidates = m.candidates();
-        let [(first, _), (second, _)] = candidates.as_slice() else {
+        if candidates.len() < 2 {
             return;
-        };
-        let branch_of = |e: &Eskf| {
-            usize::from(
-                angle_between(&e.rotation, &second.rotation)
-                    < angle_between(&e.rotation, &first.rotation),
-            )
-        };
+        }
         let reached: Vec<usize> = children
             .iter()
             .filter(|c| c.fused)
-            .map(|c| branch_of(&c.hyp.estimate))
+            .map(|c| m.nearer_candidate(&c.hyp.estimate.rotation))
             .collect();
         let Some(best) = children
             .iter()
@@ -395,19 +399,17 @@ impl Branches {
         else {
             return;
         };
-        let e_best = candidates[branch_of(&best.hyp.estimate)].1;
+        let e_best = candidates[m.nearer_candidate(&best.hyp.estimate.rotation)].1;
         let (log_weight, velocity) = (best.hyp.log_weight, best.hyp.estimate.velocity_mm_s);
         let prior = if contested { REOPEN_PRIOR } else { 1.0 };
         for (k, (pose, e)) in candidates.iter().enumerate() {
             if !reached.contains(&k) {
-                children.push(Child {
-                    hyp: Hypothesis::new(
-                        start_imm(pose, velocity, params),
-                        log_weight + prior.ln() - 0.5 * (e - e_best),
-                    ),
-                    fused: true,
-                    cost: None,
-                });
+                children.push(Child::reopened(
+                    pose,
+                    velocity,
+                    log_weight + prior.ln() - 0.5 * (e - e_best),
+                    params,
+                ));
             }
         }
     }

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::measurement::{Alternative, Corners};
-use crate::so3::exp;
+use crate::so3::{angle_between, exp};
 use nalgebra::{Rotation3, Vector2};
 use qrpose_core::geometry::marker::Marker;
 
