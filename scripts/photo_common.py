@@ -136,6 +136,18 @@ def run_qrpose(binary, image_path, width, height, flags, timeout, repeat=1, intr
     return first
 
 
+def _intrinsics(width, height, intrinsics):
+    """(fx, fy, cx, cy) px: `intrinsics` when given, else F = max(w, h) and the centre."""
+    f = float(max(width, height))
+    return intrinsics or (f, f, (width - 1) / 2, (height - 1) / 2)
+
+
+def _no_result():
+    """A run's result before anything is known: not ok, nothing read."""
+    return {"ok": False, "error": None, "ms": None, "decode_ms": None, "detect_ms": None,
+            "wall_ms": None, "markers": [], "size": None}
+
+
 _SERVERS = {}
 
 
@@ -191,12 +203,10 @@ def _post_image(url, data, query, timeout):
 
 def _run_qrpose_served(binary, image_path, width, height, flags, timeout, intrinsics=None):
     """One POST /v1/pose/image to the kept server; the same dict as `_run_qrpose_once`."""
-    f = float(max(width, height))
-    fx, fy, cx, cy = intrinsics or (f, f, (width - 1) / 2, (height - 1) / 2)
+    fx, fy, cx, cy = _intrinsics(width, height, intrinsics)
     query = {"fx_px": repr(fx), "fy_px": repr(fy), "cx_px": repr(cx), "cy_px": repr(cy),
              "marker_size_mm": "50", **flags_as_query(flags)}
-    out = {"ok": False, "error": None, "ms": None, "decode_ms": None, "detect_ms": None,
-           "wall_ms": None, "markers": [], "size": None}
+    out = _no_result()
     server = _server_for(binary)
     data = Path(image_path).read_bytes()
     t0 = time.perf_counter()
@@ -216,14 +226,12 @@ def _run_qrpose_served(binary, image_path, width, height, flags, timeout, intrin
 def _run_qrpose_once(binary, image_path, width, height, flags, timeout, intrinsics=None):
     """One `qrpose estimate --image` run. Returns a dict: ok, error, ms (decode + detect),
     decode_ms, detect_ms, wall_ms, markers [{payload, corners}], size."""
-    f = float(max(width, height))
-    fx, fy, cx, cy = intrinsics or (f, f, (width - 1) / 2, (height - 1) / 2)
+    fx, fy, cx, cy = _intrinsics(width, height, intrinsics)
     cmd = [str(binary), "estimate", "--image", str(image_path),
            "--fx-px", repr(fx), "--fy-px", repr(fy),
            "--cx-px", repr(cx), "--cy-px", repr(cy),
            "--marker-size-mm", "50"] + list(flags)
-    out = {"ok": False, "error": None, "ms": None, "decode_ms": None, "detect_ms": None,
-           "wall_ms": None, "markers": [], "size": None}
+    out = _no_result()
     t0 = time.perf_counter()
     try:
         proc = subprocess.run(cmd, capture_output=True, timeout=timeout)
