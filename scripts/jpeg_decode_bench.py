@@ -57,9 +57,7 @@ def summary_row(name, recs):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("manifest_dir", help="folder with manifest.json")
-    ap.add_argument("--only", nargs="+", metavar="CATEGORY", help="these categories only")
-    ap.add_argument("--limit", type=int, help="at most N photos per category (manifest order)")
+    pc.add_manifest_args(ap)
     ap.add_argument("--repeat", type=int, default=5, help="rounds per photo on each side (default 5)")
     ap.add_argument("--bin", default=str(DEFAULT_BIN),
                     help="the jpeg_decode_speed example (default: target/release/examples/jpeg_decode_speed)")

@@ -178,9 +178,7 @@ def print_pass_table(records):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("manifest_dir", help="folder with manifest.json")
-    ap.add_argument("--only", nargs="+", metavar="CATEGORY", help="these categories only")
-    ap.add_argument("--limit", type=int, help="at most N photos per category (manifest order)")
+    pc.add_manifest_args(ap)
     pc.add_common_args(ap)
     args = ap.parse_args()
     pc.ensure_venv()

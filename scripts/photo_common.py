@@ -56,6 +56,13 @@ def ensure_venv():
     os.execv(str(py), [str(py)] + sys.argv)
 
 
+def add_manifest_args(ap):
+    """The photo set: a folder with manifest.json, and which of its photos."""
+    ap.add_argument("manifest_dir", help="folder with manifest.json")
+    ap.add_argument("--only", nargs="+", metavar="CATEGORY", help="these categories only")
+    ap.add_argument("--limit", type=int, help="at most N photos per category (manifest order)")
+
+
 def add_common_args(ap):
     ap.add_argument("--qrpose-bin", default=str(DEFAULT_BIN),
                     help="the qrpose binary (default: target/release/qrpose)")
