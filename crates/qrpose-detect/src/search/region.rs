@@ -145,7 +145,7 @@ pub(crate) fn same_place(a: &Region, b: &Region) -> bool {
 
 /// Whether `p` lies inside the quadrilateral `quad` (corners in order around it, either
 /// way round; a self-intersecting one contains nothing).
-fn inside_quad(quad: &[PixelPoint; 4], p: &PixelPoint) -> bool {
+pub(crate) fn inside_quad(quad: &[PixelPoint; 4], p: &PixelPoint) -> bool {
     let side = |a: &PixelPoint, b: &PixelPoint| {
         (b.u() - a.u()) * (p.v() - a.v()) - (b.v() - a.v()) * (p.u() - a.u())
     };

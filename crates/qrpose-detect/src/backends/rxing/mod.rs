@@ -21,7 +21,7 @@ use crate::backends::{Backend, Candidate, Detector};
 use crate::contain::contain;
 use crate::raster::GrayImage;
 use crate::search::pairs::FinderPattern;
-use crate::search::region::Region;
+use crate::search::region::{Region, inside_quad};
 use finder_scan::find_finder_patterns;
 use global_binarizer::global_binarizer;
 use hybrid_binarizer::local_binarizer;
@@ -70,7 +70,7 @@ impl RxingDetector {
 /// could not read, and the finder patterns that no decoded symbol used.
 type Read = (Vec<Candidate>, Vec<Region>, Vec<FinderPattern>);
 
-fn detect_unguarded(image: &GrayImage, detector: RxingDetector) -> Read {
+fn detect_unguarded(image: &GrayImage, detector: RxingDetector, read_codes: &[Quad]) -> Read {
     let (Ok(w), Ok(h)) = (u32::try_from(image.width()), u32::try_from(image.height())) else {
         return Read::default();
     };
@@ -78,9 +78,9 @@ fn detect_unguarded(image: &GrayImage, detector: RxingDetector) -> Read {
         return Read::default();
     };
     if detector.global_histogram {
-        read(&global_binarizer(source), detector.located)
+        read(&global_binarizer(source), detector.located, read_codes)
     } else {
-        read(&local_binarizer(source), detector.located)
+        read(&local_binarizer(source), detector.located, read_codes)
     }
 }
 
@@ -89,7 +89,12 @@ fn detect_unguarded(image: &GrayImage, detector: RxingDetector) -> Read {
 /// size, the module count, is kept: the reader's own results drop it. Triples that do not
 /// sample or decode are returned as [`Region`]s, where `auto` may look again, and so are
 /// the finder patterns that no decoded symbol used (see [`crate::search::pairs`]).
-fn read<B: Binarizer>(binarizer: &B, located: bool) -> Read {
+///
+/// A triple whose three finder patterns each lie inside one of `read_codes` (codes an
+/// earlier pass decoded, in this image's pixels) is skipped unsampled: a finder pattern
+/// belongs to one code, so the triple can only be those codes again. Its patterns count as
+/// used.
+fn read<B: Binarizer>(binarizer: &B, located: bool, read_codes: &[Quad]) -> Read {
     let Ok(binary) = binarizer.get_black_matrix() else {
         return Read::default();
     };
@@ -99,6 +104,10 @@ fn read<B: Binarizer>(binarizer: &B, located: bool) -> Read {
     let mut unread = Vec::new();
     for set in GenerateFinderPatternSets(&mut patterns) {
         if [set.bl, set.tl, set.tr].iter().any(|p| used.contains(p)) {
+            continue;
+        }
+        if of_read_codes(&set, read_codes) {
+            used.extend([set.bl, set.tl, set.tr]);
             continue;
         }
         let sampled = SampleQR(binary, &set).ok();
@@ -162,6 +171,18 @@ fn qr_corners(points: &[Point]) -> Option<[PixelPoint; 4]> {
     Some([corner(0)?, corner(1)?, corner(3)?, corner(2)?])
 }
 
+/// A code's corners, px.
+type Quad = [PixelPoint; 4];
+
+/// Whether each of the triple's finder-pattern centres lies inside one of `read_codes`.
+fn of_read_codes(set: &FinderPatternSet, read_codes: &[Quad]) -> bool {
+    !read_codes.is_empty()
+        && [&set.tl, &set.tr, &set.bl].iter().all(|p| {
+            let centre = PixelPoint::new(f64::from(p.p.x), f64::from(p.p.y));
+            read_codes.iter().any(|q| inside_quad(q, &centre))
+        })
+}
+
 /// The region of an unread finder-pattern triple.
 fn region_of(set: &FinderPatternSet) -> Option<Region> {
     let centre = |p: &ConcentricPattern| PixelPoint::new(f64::from(p.p.x), f64::from(p.p.y));
@@ -188,12 +209,73 @@ impl RxingDetector {
         (found, regions)
     }
 
+    /// [`Self::detect_with_regions`] without sampling the finder-pattern triples of codes
+    /// already read (`read_codes`, corners in `image`'s pixels): a reduced copy's read of a
+    /// frame whose full-resolution read decoded them spends nothing on them again.
+    #[must_use]
+    pub(crate) fn detect_skipping(
+        &self,
+        image: &GrayImage,
+        read_codes: &[Quad],
+    ) -> (Vec<Candidate>, Vec<Region>) {
+        let (found, regions, _) =
+            contain(|| detect_unguarded(image, *self, read_codes)).unwrap_or_default();
+        (found, regions)
+    }
+
     /// [`Self::detect_with_regions`], and the finder patterns that no decoded symbol used.
     #[must_use]
     pub(crate) fn detect_with_patterns(
         &self,
         image: &GrayImage,
     ) -> (Vec<Candidate>, Vec<Region>, Vec<FinderPattern>) {
-        contain(|| detect_unguarded(image, *self)).unwrap_or_default()
+        contain(|| detect_unguarded(image, *self, &[])).unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 640 × 480 frame with the code `text` at (`x0`, `y0`), 5 px per module.
+    fn frame_with_code(text: &str, x0: usize, y0: usize) -> GrayImage {
+        let code = qrcode::QrCode::new(text.as_bytes()).expect("a QR code");
+        let (modules, colours) = (code.width(), code.to_colors());
+        let (w, h, module_px): (usize, usize, usize) = (640, 480, 5);
+        let pixels = (0..w * h)
+            .map(|i| {
+                let (Some(dx), Some(dy)) = ((i % w).checked_sub(x0), (i / w).checked_sub(y0))
+                else {
+                    return 200;
+                };
+                let (mx, my) = (dx / module_px, dy / module_px);
+                let dark = mx < modules
+                    && my < modules
+                    && colours[my * modules + mx] == qrcode::Color::Dark;
+                if dark { 40 } else { 200 }
+            })
+            .collect();
+        GrayImage::new(w, h, pixels).expect("a size")
+    }
+
+    /// A reduced copy's read skips the triple of a code read already, and only that one: it
+    /// neither decodes it again nor makes it a region, while a code elsewhere is read.
+    #[test]
+    fn a_read_skips_the_triples_of_codes_read_already() {
+        let image = frame_with_code("READ-BEFORE", 100, 80);
+        let (found, regions) = RxingDetector::hybrid().detect_with_regions(&image);
+        let texts: Vec<_> = found.iter().filter_map(|c| c.text.as_deref()).collect();
+        assert_eq!(texts, ["READ-BEFORE"]);
+        assert!(regions.is_empty());
+        let read_before = found.first().expect("one code").corners_px;
+
+        let (again, regions) = RxingDetector::hybrid().detect_skipping(&image, &[read_before]);
+        assert!(again.is_empty(), "{again:?}");
+        assert!(regions.is_empty(), "{regions:?}");
+
+        let elsewhere = read_before.map(|p| PixelPoint::new(p.u() + 300.0, p.v()));
+        let (found, _) = RxingDetector::hybrid().detect_skipping(&image, &[elsewhere]);
+        let texts: Vec<_> = found.iter().filter_map(|c| c.text.as_deref()).collect();
+        assert_eq!(texts, ["READ-BEFORE"]);
     }
 }
