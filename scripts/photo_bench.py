@@ -175,6 +175,32 @@ def print_pass_table(records):
               f"{k['max']:.0f} | {k['decoded']} | {len(k['photos_decoding'])} |")
 
 
+def print_cost_floor(records):
+    """The photo-by-photo ratio (OpenCV's decode) if parts of qrpose's time were gone: its
+    decode as fast as OpenCV's (libjpeg-turbo), no pass after the full-resolution read (what
+    `fast` runs; refinement kept), and both. What no choice of later passes can go below."""
+    rows = []
+    for r in records:
+        q, z = r["qrpose"], r.get("zxing")
+        if not (q["ok"] and z and z["ok"] and z.get("ms_opencv") and q.get("passes")):
+            continue
+        later = sum(p[1] or 0.0 for p in q["passes"][1:])
+        rows.append((q["decode_ms"], q["detect_ms"], later, z["decode_ms"], z["ms_opencv"]))
+    if not rows:
+        return
+    cases = (("as measured", lambda d, t, l, zd: d + t),
+             ("qrpose's decode as fast as OpenCV's", lambda d, t, l, zd: zd + t),
+             ("no pass after the first", lambda d, t, l, zd: d + t - l),
+             ("both", lambda d, t, l, zd: zd + t - l))
+    print("\nThe photo-by-photo ratio (OpenCV's decode) without parts of qrpose's time "
+          f"({len(rows)} photos; the first pass is the full-resolution read):\n")
+    print("| qrpose's time | median | p90 |")
+    print("|---|---|---|")
+    for name, f in cases:
+        ratios = [f(d, t, l, zd) / z for d, t, l, zd, z in rows]
+        print(f"| {name} | {pc.median(ratios):.2f} | {pc.pct(ratios, 0.90):.2f} |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -264,6 +290,7 @@ def main():
                   f"detect {q['detect_ms']:.0f} ms; read {len(q['read'])} of {r['codes']}): "
                   + ", ".join(f"{p[0]} {p[1]:.0f} ({p[2]})" for p in big) + ".")
     print_pass_table(records)
+    print_cost_floor(records)
     fails = [r for r in records if not r["qrpose"]["ok"]]
     if fails:
         print(f"qrpose failures ({len(fails)}, counted as nothing read):")
