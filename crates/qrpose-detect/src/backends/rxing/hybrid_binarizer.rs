@@ -9,6 +9,9 @@ use rxing::common::{BitArray, BitMatrix};
 
 /// Side of the blocks of the local binariser, px.
 const BLOCK_PX: usize = 8;
+/// Side of the window whose blocks set a block's threshold (5 × 5 blocks), px: a module at
+/// least this wide can fill the whole window, which is then thresholded against itself.
+pub(crate) const LOCAL_WINDOW_PX: usize = 5 * BLOCK_PX;
 /// Blocks with at most this grey-level range get a threshold from their neighbours.
 const MIN_DYNAMIC_RANGE: u8 = 24;
 

@@ -24,6 +24,7 @@ use crate::search::pairs::FinderPattern;
 use crate::search::region::{Region, inside_quad};
 use finder_scan::find_finder_patterns;
 use global_binarizer::global_binarizer;
+pub(crate) use hybrid_binarizer::LOCAL_WINDOW_PX;
 use hybrid_binarizer::local_binarizer;
 use qrpose_core::geometry::frames::PixelPoint;
 use rxing::common::DetectorRXingResult;
