@@ -48,7 +48,7 @@ pub(super) fn find(finds: &mut Finds<'_>, effort: Effort, best: Backend, log: &m
     // everything the frame shows at full resolution: `balanced` takes that as the frame's
     // whole evidence and skips the reduced levels (`thorough` reads them anyway).
     let explained = decoded(&read) > 0 && regions.is_empty() && patterns.is_empty();
-    finds.add(read);
+    finds.add(read, log);
     finds.regions.extend(regions);
     finds.patterns = patterns;
     let large = image.width().min(image.height()) >= HALF_SCALE_FIRST_MIN_SIDE_PX;
@@ -146,9 +146,9 @@ fn read_level(
                 |v: &Vec<Candidate>| decoded(v),
                 || precise(image, rough),
             );
-            finds.add(precise);
+            finds.add(precise, log);
         } else {
-            finds.add(vec![rough]);
+            finds.add(vec![rough], log);
         }
     }
     finds

@@ -101,9 +101,24 @@ struct Finds<'a> {
 }
 
 impl Finds<'_> {
-    /// Re-reads the undecoded of `new` through their module grid and merges them in.
-    fn add(&mut self, mut new: Vec<Candidate>) {
-        reread_undecoded(self.image, &mut new, &mut self.tried);
+    /// Re-reads the undecoded of `new` through their module grid (a pass of its own in
+    /// `log`, `re-read`, when one is new) and merges them in.
+    fn add(&mut self, mut new: Vec<Candidate>, log: &mut PassLog) {
+        let untried = new
+            .iter()
+            .any(|c| c.payload.is_none() && !self.tried.contains(&c.corners_px));
+        if untried {
+            let before = decoded(&new);
+            let (image, tried) = (self.image, &mut self.tried);
+            new = log.run(
+                "re-read",
+                |v: &Vec<Candidate>| decoded(v).saturating_sub(before),
+                || {
+                    reread_undecoded(image, &mut new, tried);
+                    new
+                },
+            );
+        }
         merge_candidates(&mut self.found, new);
     }
 }
@@ -222,7 +237,7 @@ fn regions(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
                         .iter()
                         .any(|f| f.payload.is_some() && same_symbol(f, c))
             });
-            finds.add(read);
+            finds.add(read, log);
             if done {
                 break;
             }
@@ -270,7 +285,7 @@ fn everything(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
         }) else {
             return;
         };
-        finds.add(read);
+        finds.add(read, log);
     }
     let rqrr_may_search = image.pixels().len() <= RQRR_WHOLE_FRAME_MAX_PIXELS;
     for backend in auto_order()
@@ -288,7 +303,7 @@ fn everything(finds: &mut Finds<'_>, best: Backend, log: &mut PassLog) {
             |v: &Vec<Candidate>| decoded(v),
             || detector.detect(image),
         );
-        finds.add(read);
+        finds.add(read, log);
     }
 }
 
@@ -341,7 +356,7 @@ pub(crate) fn find_candidates(
     let aside = std::mem::take(&mut finds.aside);
     if !aside.is_empty() {
         let others = std::mem::take(&mut finds.found);
-        finds.add(aside);
+        finds.add(aside, log);
         merge_candidates(&mut finds.found, others);
     }
     finds.found

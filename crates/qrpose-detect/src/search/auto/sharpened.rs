@@ -112,7 +112,7 @@ fn sharpened_read(finds: &mut Finds<'_>, area: Option<(usize, Region)>, log: &mu
             (read, regions, patterns)
         },
     );
-    finds.add(read);
+    finds.add(read, log);
     drop(sharp);
     let small = regions
         .into_iter()
@@ -268,7 +268,7 @@ fn look_once_more(
             };
             read.retain(|c| c.payload.is_some());
             let done = any_decoded(&read);
-            finds.add(read);
+            finds.add(read, log);
             if done {
                 break;
             }

@@ -287,3 +287,53 @@ fn a_small_frame_without_evidence_still_gets_every_pass() {
     assert_eq!(passes.first(), Some(&"rxing full"), "{passes:?}");
     assert!(passes.contains(&"whole inverted"), "{passes:?}");
 }
+
+/// A located symbol without a payload is re-read through its module grid as a pass of its
+/// own (`re-read`, counting what it decoded), once per place: its time is in the log like
+/// every other pass's.
+#[test]
+fn the_re_read_of_a_located_symbol_is_a_logged_pass_once_per_place() {
+    let code = qrcode::QrCode::new(b"RE-READ").expect("a QR code");
+    let (modules, colours) = (code.width(), code.to_colors());
+    let (module_px, x0, y0) = (6, 400, 200);
+    let image = frame_with(|x, y| {
+        let (Some(dx), Some(dy)) = (x.checked_sub(x0), y.checked_sub(y0)) else {
+            return false;
+        };
+        let (mx, my) = (dx / module_px, dy / module_px);
+        mx < modules && my < modules && colours[my * modules + mx] == qrcode::Color::Dark
+    });
+    // Whole-pixel corners about a pixel off, in qr order, as a backend locates them.
+    let (lo_u, lo_v) = (x0 as f64 - 0.5, y0 as f64 - 0.5);
+    let side = (modules * module_px) as f64;
+    let corners = [(0.0, 0.0), (side, 0.0), (side, side), (0.0, side)]
+        .map(|(du, dv)| PixelPoint::new((lo_u + du + 1.0).round(), (lo_v + dv - 1.0).round()));
+    let located = Candidate {
+        corners_px: corners,
+        payload: None,
+        text: None,
+        module_count: Some(modules),
+        backend: Backend::Rxing,
+    };
+    let mut finds = Finds {
+        image: &image,
+        found: Vec::new(),
+        regions: Vec::new(),
+        tried: Vec::new(),
+        patterns: Vec::new(),
+        aside: Vec::new(),
+    };
+    let mut log = PassLog::new(Duration::from_secs(60));
+    finds.add(vec![located.clone()], &mut log);
+    let passes: Vec<(&str, usize)> = log
+        .passes
+        .iter()
+        .map(|p| (p.name.as_str(), p.decoded))
+        .collect();
+    assert_eq!(passes, [("re-read", 1)]);
+    let texts: Vec<_> = finds.found.iter().filter_map(|c| c.text.as_deref()).collect();
+    assert_eq!(texts, ["RE-READ"]);
+
+    finds.add(vec![located], &mut log);
+    assert_eq!(log.passes.len(), 1, "the same place is not re-read twice");
+}
