@@ -331,7 +331,11 @@ fn the_re_read_of_a_located_symbol_is_a_logged_pass_once_per_place() {
         .map(|p| (p.name.as_str(), p.decoded))
         .collect();
     assert_eq!(passes, [("re-read", 1)]);
-    let texts: Vec<_> = finds.found.iter().filter_map(|c| c.text.as_deref()).collect();
+    let texts: Vec<_> = finds
+        .found
+        .iter()
+        .filter_map(|c| c.text.as_deref())
+        .collect();
     assert_eq!(texts, ["RE-READ"]);
 
     finds.add(vec![located], &mut log);
