@@ -22,7 +22,6 @@ use qrpose_detect::cancel::CancelFlag;
 use qrpose_detect::decode::{self, GrayImage};
 use qrpose_track::{
     Measurement, Outcome, PredictedRegion, TrackReport, TrackStatus, Tracker, TrackerParams,
-    inside_image,
 };
 use std::time::Instant;
 
@@ -276,7 +275,7 @@ fn lost_in_view(track: &TrackReport, camera: &Camera, width_px: f64, height_px: 
     track.marker.object_points().iter().all(|m| {
         camera
             .project(&pose.transform(m))
-            .is_some_and(|p| inside_image(&p, width_px, height_px))
+            .is_some_and(|p| p.inside_image(width_px, height_px))
     })
 }
 

@@ -42,6 +42,8 @@ pub mod pipeline;
 pub mod raster;
 pub mod refine;
 pub mod search;
+#[cfg(test)]
+mod test_frames;
 
 pub use backends::{Backend, Candidate, DetectError, Detector, DetectorChoice};
 pub use budget::{Budget, Effort, PassLog, PassReport};

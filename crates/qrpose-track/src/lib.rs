@@ -48,7 +48,7 @@ mod tracker;
 
 pub use measurement::{Alternative, Measurement, MeasurementError, PoseCandidate};
 pub use params::{CHI2_3DOF_999, CHI2_8DOF_999, Param, ParamError, TrackerParams};
-pub use region::{PredictedRegion, inside_image};
+pub use region::PredictedRegion;
 pub use report::{
     Assignment, FilteredPose, FrameUpdate, Outcome, TrackError, TrackReport, TrackStatus,
 };

@@ -55,14 +55,8 @@ impl PredictedRegion {
     pub fn predicted_inside(&self, width_px: f64, height_px: f64) -> bool {
         self.corners_px
             .iter()
-            .all(|p| inside_image(p, width_px, height_px))
+            .all(|p| p.inside_image(width_px, height_px))
     }
-}
-
-/// Whether `p` lies in an image of `width_px` × `height_px` (pixel centres at integer
-/// coordinates, so inside is [-0.5, width − 0.5] × [-0.5, height − 0.5]).
-pub fn inside_image(p: &PixelPoint, width_px: f64, height_px: f64) -> bool {
-    (-0.5..=width_px - 0.5).contains(&p.u()) && (-0.5..=height_px - 0.5).contains(&p.v())
 }
 
 /// The largest eigenvalue of a symmetric 2×2 matrix [[a, b], [b, c]].

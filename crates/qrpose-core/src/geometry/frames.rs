@@ -46,6 +46,12 @@ impl PixelPoint {
     pub fn v(&self) -> f64 {
         self.0.y
     }
+    /// Whether the point lies in an image of `width_px` × `height_px`, between its outer
+    /// pixel edges: pixel centres are at integer coordinates, so inside is
+    /// [−0.5, width − 0.5] × [−0.5, height − 0.5].
+    pub fn inside_image(&self, width_px: f64, height_px: f64) -> bool {
+        (-0.5..=width_px - 0.5).contains(&self.u()) && (-0.5..=height_px - 0.5).contains(&self.v())
+    }
 }
 
 /// An undistorted point on the z = 1 plane of the camera frame (dimensionless).
@@ -132,6 +138,19 @@ impl CameraToMarker {
 mod tests {
     use super::*;
     use approx::assert_relative_eq;
+
+    /// Inside an image runs to the outer edges of its border pixels, half a pixel beyond
+    /// their centres.
+    #[test]
+    fn inside_an_image_reaches_the_outer_pixel_edges() {
+        let (w, h) = (640.0, 480.0);
+        for (u, v) in [(-0.5, -0.5), (639.5, 479.5), (0.0, 0.0), (320.0, 240.0)] {
+            assert!(PixelPoint::new(u, v).inside_image(w, h), "({u}, {v})");
+        }
+        for (u, v) in [(-0.51, 0.0), (639.51, 0.0), (0.0, -0.51), (0.0, 479.51)] {
+            assert!(!PixelPoint::new(u, v).inside_image(w, h), "({u}, {v})");
+        }
+    }
 
     #[test]
     fn inverse_pose_maps_camera_points_back_to_the_marker() {

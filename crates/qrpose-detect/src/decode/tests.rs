@@ -308,23 +308,16 @@ fn an_adobe_rgb_jpeg_decodes_to_luma() {
 #[test]
 fn a_qr_code_printed_in_cmyk_is_still_read() {
     use crate::Detector;
+    use crate::test_frames::DrawnCode;
     use jpeg_encoder::ColorType;
-    let code = qrcode::QrCode::new(b"CMYK-1").expect("a QR code");
-    let modules = code.width();
-    let colors = code.to_colors();
     let (scale, quiet) = (6, 4);
-    let side = (modules + 2 * quiet) * scale;
+    let code = DrawnCode::new("CMYK-1", scale, quiet * scale, quiet * scale);
+    let side = (code.modules + 2 * quiet) * scale;
     // Dark modules in rich black on a light cyan tint.
     let mut ink = Vec::with_capacity(side * side * 4);
     for y in 0..side {
         for x in 0..side {
-            let (mx, my) = (
-                (x / scale).wrapping_sub(quiet),
-                (y / scale).wrapping_sub(quiet),
-            );
-            let dark =
-                mx < modules && my < modules && colors[my * modules + mx] == qrcode::Color::Dark;
-            ink.extend(if dark {
+            ink.extend(if code.dark(x, y) {
                 [200, 180, 180, 230]
             } else {
                 [40, 0, 0, 0]

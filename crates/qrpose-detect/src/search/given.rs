@@ -101,9 +101,9 @@ impl SearchRegion {
     fn code_may_be_whole(&self, image: &GrayImage) -> bool {
         let (width, height) = (image.width() as f64, image.height() as f64);
         match self {
-            Self::Quad { corners_px, .. } => corners_px.iter().all(|p| {
-                (-0.5..=width - 0.5).contains(&p.u()) && (-0.5..=height - 0.5).contains(&p.v())
-            }),
+            Self::Quad { corners_px, .. } => {
+                corners_px.iter().all(|p| p.inside_image(width, height))
+            }
             Self::Rect { .. } => true,
         }
     }

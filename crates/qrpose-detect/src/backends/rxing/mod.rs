@@ -141,7 +141,7 @@ fn read<B: Binarizer>(binarizer: &B, located: bool, read_codes: &[Quad]) -> Read
         .iter()
         .filter(|p| !used.contains(p))
         .map(|p| FinderPattern {
-            centre: PixelPoint::new(f64::from(p.p.x), f64::from(p.p.y)),
+            centre: centre_of(p),
             size_px: f64::from(p.size),
         })
         .collect();
@@ -178,17 +178,25 @@ type Quad = [PixelPoint; 4];
 /// Whether each of the triple's finder-pattern centres lies inside one of `read_codes`.
 fn of_read_codes(set: &FinderPatternSet, read_codes: &[Quad]) -> bool {
     !read_codes.is_empty()
-        && [&set.tl, &set.tr, &set.bl].iter().all(|p| {
-            let centre = PixelPoint::new(f64::from(p.p.x), f64::from(p.p.y));
-            read_codes.iter().any(|q| inside_quad(q, &centre))
-        })
+        && [&set.tl, &set.tr, &set.bl]
+            .iter()
+            .all(|p| read_codes.iter().any(|q| inside_quad(q, &centre_of(p))))
 }
 
 /// The region of an unread finder-pattern triple.
 fn region_of(set: &FinderPatternSet) -> Option<Region> {
-    let centre = |p: &ConcentricPattern| PixelPoint::new(f64::from(p.p.x), f64::from(p.p.y));
     let finder_px = f64::from(set.tl.size.max(set.tr.size).max(set.bl.size));
-    Region::from_finder_centres(centre(&set.tl), centre(&set.tr), centre(&set.bl), finder_px)
+    Region::from_finder_centres(
+        centre_of(&set.tl),
+        centre_of(&set.tr),
+        centre_of(&set.bl),
+        finder_px,
+    )
+}
+
+/// A finder pattern's centre, px.
+fn centre_of(p: &ConcentricPattern) -> PixelPoint {
+    PixelPoint::new(f64::from(p.p.x), f64::from(p.p.y))
 }
 
 impl Detector for RxingDetector {
@@ -206,8 +214,7 @@ impl RxingDetector {
     /// could not be read (for `auto`'s further passes).
     #[must_use]
     pub(crate) fn detect_with_regions(&self, image: &GrayImage) -> (Vec<Candidate>, Vec<Region>) {
-        let (found, regions, _) = self.detect_with_patterns(image);
-        (found, regions)
+        self.detect_skipping(image, &[])
     }
 
     /// [`Self::detect_with_regions`] without sampling the finder-pattern triples of codes
@@ -237,33 +244,13 @@ impl RxingDetector {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A 640 × 480 frame with the code `text` at (`x0`, `y0`), 5 px per module.
-    fn frame_with_code(text: &str, x0: usize, y0: usize) -> GrayImage {
-        let code = qrcode::QrCode::new(text.as_bytes()).expect("a QR code");
-        let (modules, colours) = (code.width(), code.to_colors());
-        let (w, h, module_px): (usize, usize, usize) = (640, 480, 5);
-        let pixels = (0..w * h)
-            .map(|i| {
-                let (Some(dx), Some(dy)) = ((i % w).checked_sub(x0), (i / w).checked_sub(y0))
-                else {
-                    return 200;
-                };
-                let (mx, my) = (dx / module_px, dy / module_px);
-                let dark = mx < modules
-                    && my < modules
-                    && colours[my * modules + mx] == qrcode::Color::Dark;
-                if dark { 40 } else { 200 }
-            })
-            .collect();
-        GrayImage::new(w, h, pixels).expect("a size")
-    }
+    use crate::test_frames::DrawnCode;
 
     /// A reduced copy's read skips the triple of a code read already, and only that one: it
     /// neither decodes it again nor makes it a region, while a code elsewhere is read.
     #[test]
     fn a_read_skips_the_triples_of_codes_read_already() {
-        let image = frame_with_code("READ-BEFORE", 100, 80);
+        let image = DrawnCode::new("READ-BEFORE", 5, 100, 80).frame(640, 480, 40, 200);
         let (found, regions) = RxingDetector::hybrid().detect_with_regions(&image);
         let texts: Vec<_> = found.iter().filter_map(|c| c.text.as_deref()).collect();
         assert_eq!(texts, ["READ-BEFORE"]);

@@ -3,6 +3,7 @@
 
 use super::passes::{SecondPass, look_closer, second_passes};
 use super::*;
+use crate::test_frames::DrawnCode;
 use std::borrow::Cow;
 use std::cell::Cell;
 use std::time::Duration;
@@ -240,16 +241,8 @@ fn a_frame_with_an_unread_triple_runs_the_crop_passes() {
 /// code again (the speed benchmark's one-code frame).
 #[test]
 fn a_frame_read_whole_at_full_resolution_stops_after_that_read() {
-    let code = qrcode::QrCode::new(b"ONE-CODE").expect("a QR code");
-    let (modules, colours) = (code.width(), code.to_colors());
-    let (module_px, x0, y0) = (6, 400, 200);
-    let image = frame_with(|x, y| {
-        let (Some(dx), Some(dy)) = (x.checked_sub(x0), y.checked_sub(y0)) else {
-            return false;
-        };
-        let (mx, my) = (dx / module_px, dy / module_px);
-        mx < modules && my < modules && colours[my * modules + mx] == qrcode::Color::Dark
-    });
+    let code = DrawnCode::new("ONE-CODE", 6, 400, 200);
+    let image = frame_with(|x, y| code.dark(x, y));
     let mut log = PassLog::new(Duration::from_secs(60));
     let found = find_candidates(&image, Effort::Balanced, &mut log);
     let texts: Vec<_> = found.iter().filter_map(|c| c.text.as_deref()).collect();
@@ -262,22 +255,8 @@ fn a_frame_read_whole_at_full_resolution_stops_after_that_read() {
 /// negative (the evidence gate once skipped it and lost four of zxing-cpp's test images).
 #[test]
 fn a_small_frame_without_evidence_still_gets_every_pass() {
-    let code = qrcode::QrCode::new(b"LIGHT-ON-DARK").expect("a QR code");
-    let (modules, colours) = (code.width(), code.to_colors());
-    let (w, h, module_px, x0, y0): (usize, usize, usize, usize, usize) = (480, 360, 6, 150, 100);
-    let pixels = (0..w * h)
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            let (Some(dx), Some(dy)) = (x.checked_sub(x0), y.checked_sub(y0)) else {
-                return 40;
-            };
-            let (mx, my) = (dx / module_px, dy / module_px);
-            let dark =
-                mx < modules && my < modules && colours[my * modules + mx] == qrcode::Color::Dark;
-            if dark { 200 } else { 40 }
-        })
-        .collect();
-    let image = GrayImage::new(w, h, pixels).expect("a size");
+    // Light modules (200) on a dark ground (40).
+    let image = DrawnCode::new("LIGHT-ON-DARK", 6, 150, 100).frame(480, 360, 200, 40);
     assert!(image.pixels().len() <= WHOLE_FRAME_MAX_PIXELS);
     let mut log = PassLog::new(Duration::from_secs(60));
     let found = find_candidates(&image, Effort::Balanced, &mut log);
@@ -293,26 +272,18 @@ fn a_small_frame_without_evidence_still_gets_every_pass() {
 /// every other pass's.
 #[test]
 fn the_re_read_of_a_located_symbol_is_a_logged_pass_once_per_place() {
-    let code = qrcode::QrCode::new(b"RE-READ").expect("a QR code");
-    let (modules, colours) = (code.width(), code.to_colors());
-    let (module_px, x0, y0) = (6, 400, 200);
-    let image = frame_with(|x, y| {
-        let (Some(dx), Some(dy)) = (x.checked_sub(x0), y.checked_sub(y0)) else {
-            return false;
-        };
-        let (mx, my) = (dx / module_px, dy / module_px);
-        mx < modules && my < modules && colours[my * modules + mx] == qrcode::Color::Dark
-    });
+    let code = DrawnCode::new("RE-READ", 6, 400, 200);
+    let image = frame_with(|x, y| code.dark(x, y));
     // Whole-pixel corners about a pixel off, in qr order, as a backend locates them.
-    let (lo_u, lo_v) = (x0 as f64 - 0.5, y0 as f64 - 0.5);
-    let side = (modules * module_px) as f64;
+    let (lo_u, lo_v) = (code.x0 as f64 - 0.5, code.y0 as f64 - 0.5);
+    let side = (code.modules * code.module_px) as f64;
     let corners = [(0.0, 0.0), (side, 0.0), (side, side), (0.0, side)]
         .map(|(du, dv)| PixelPoint::new((lo_u + du + 1.0).round(), (lo_v + dv - 1.0).round()));
     let located = Candidate {
         corners_px: corners,
         payload: None,
         text: None,
-        module_count: Some(modules),
+        module_count: Some(code.modules),
         backend: Backend::Rxing,
     };
     let mut finds = Finds {
