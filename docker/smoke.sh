@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The Docker image built and run for real (issue 26): docker/Dockerfile built on this
+# The Docker image built and run for real: docker/Dockerfile built on this
 # machine, the container checked as it will run, and docker/compose.yaml's balancer with two
 # replicas, one killed under load. Run by .ci/run; run it by hand the same way (as root):
 #
@@ -276,7 +276,7 @@ check "replicas get compose.yaml's limits and a read-only root ($("$DOCKER" insp
   test "$("$DOCKER" inspect -f '{{.HostConfig.Memory}} {{.HostConfig.NanoCpus}} {{.HostConfig.ReadonlyRootfs}}' "${REPLICAS[@]}" | sort -u)" = "$want"
 check "the balancer answers /healthz from a replica" curl -sf -o /dev/null "$LB_URL/healthz"
 
-# websocket_session_through_lb URL: a WebSocket session on GET /v1/stream (issue 24) through
+# websocket_session_through_lb URL: a WebSocket session on GET /v1/stream (docs/stream.md) through
 # the balancer: frames of the rendered `still` video (rendered by the image), each answered in
 # order with `tracks`, a code `tracking` by the end, closed with 1000
 # (scripts/stream_load.py session, websockets from PyPI in target/stream-load-venv). nginx's

@@ -1,5 +1,5 @@
 //! How long the JPEG decode to grey takes, per photo, with qrpose's decoder and with
-//! zune-jpeg's options (issue 27, "cheaper pixels"), for `scripts/jpeg_decode_bench.py`,
+//! zune-jpeg's options, for `scripts/jpeg_decode_bench.py`,
 //! which times OpenCV's greyscale decode (libjpeg-turbo) on the same bytes beside it.
 //!
 //! ```sh

@@ -1,4 +1,4 @@
-//! The stream's tracker measured on rendered video with truth (issue 24, "Measured"):
+//! The stream's tracker measured on rendered video with truth (docs/stream.md, "Measured"):
 //! wrong poses, jitter, lag, coverage, identity, covariance consistency and detection cost,
 //! each beside the single-frame answer of the same frames.
 //!

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Camera calibration from photos of a printed QR code, against OpenCV (issue 25, "Measured").
+"""Camera calibration from photos of a printed QR code, against OpenCV (docs/calibration.md,
+"Compared with OpenCV's checkerboard").
 
     python3 scripts/calibration_compare.py                    # 20 sets, every method
     python3 scripts/calibration_compare.py --sets 3 --methods ours,checkerboard
@@ -47,7 +48,7 @@ it left out (why, and how tilted their code), and the time for the 15 photos: CP
 sys, of the children for subprocesses) and wall clock, with the load average beside them.
 
 Output: Markdown tables (the first set's values; over all sets: RMS and max of each error,
-mean std, normalised error RMS, median times), the issue's targets (ours at most 1.5x the
+mean std, normalised error RMS, median times), the targets (ours at most 1.5x the
 checkerboard's RMS error or under 0.15 %, 3 px, 2 px; stds consistent; 15 photos under 2 s
 on one core), and with --json every per-set number.
 
@@ -66,7 +67,7 @@ SETS_DIR = TARGET / "calibration-compare"
 PROFILES = {"release": "release", "dev": "debug"}
 METHODS = ["ours", "checkerboard", "qr4-qrpose", "qr4-opencv"]
 BOARD_INNER = (9, 9)
-# The issue's targets: each error at most 1.5x the checkerboard's, or under these.
+# The targets: each error at most 1.5x the checkerboard's, or under these.
 TARGETS = {"focal_pct": 0.15, "pp_px": 3.0, "field_p95_px": 2.0}
 TIME_TARGET_S = 2.0
 
@@ -291,8 +292,8 @@ def main():
     render_sets(seeds, args.profile)
     if "ours" in methods and not has_calibrate(args.qrpose_bin):
         print(f"SKIPPED ours: {args.qrpose_bin} has no `calibrate` subcommand (the points "
-              "extraction of issue 25 has not landed in this build); build it with "
-              "`cargo build --release` once it has.", file=sys.stderr)
+              "extraction is not in this build); build this tree with "
+              "`cargo build --release`.", file=sys.stderr)
         methods.remove("ours")
     on_cpu0()
     env = {"machine": platform.node(), "cpu": cm.cpu_model(), "cores": os.cpu_count(),

@@ -1,5 +1,5 @@
 """Measures of a fitted camera against the truth, and the report, for
-scripts/calibration_compare.py (issue 25). Needs numpy and OpenCV (cv2), which that script's
+scripts/calibration_compare.py. Needs numpy and OpenCV (cv2), which that script's
 virtual environment provides.
 
 * Cameras are plumb_bob: fx, fy, cx, cy (px, integer = pixel centre) and OpenCV's

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Checks the deployment files statically, without a Docker engine or a cluster (issue 6;
-docker/smoke.sh builds and runs them for real, issue 26).
+"""Checks the deployment files statically, without a Docker engine or a cluster
+(docker/smoke.sh builds and runs them for real; docs/deploy.md).
 
 Parses docker/compose.yaml and docker/k8s/*.yaml and checks that they name what the
 deployment relies on: the services and their health checks, the environment-only

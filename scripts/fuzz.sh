@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# cargo fuzz targets of qrpose (fuzz/, issue 16), each for SECONDS (default 600):
+# cargo fuzz targets of qrpose (fuzz/), each for SECONDS (default 600):
 #
 #   scripts/fuzz.sh [SECONDS] [TARGET...]      # targets: json_request decode detect estimators splice
 #

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The JPEG decode to grey, photo by photo (issue 27, "cheaper pixels"): qrpose's decoder and
+"""The JPEG decode to grey, photo by photo: qrpose's decoder and
 zune-jpeg's options (examples/jpeg_decode_speed.rs) against OpenCV's greyscale decode
 (libjpeg-turbo), on the same bytes.
 

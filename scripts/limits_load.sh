@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Load run of `qrpose serve` at a Docker Compose service's limits (issue 16): the CPU and
+# Load run of `qrpose serve` at a Docker Compose service's limits (docs/deploy.md): the CPU and
 # memory limits of the service in docker/compose.yaml, emulated with a fresh cgroup (no
 # Docker engine needed), and the service's environment (QRPOSE_* and RUST_LOG) exactly.
 #

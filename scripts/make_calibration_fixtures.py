@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Writes the OpenCV fixtures of the lens models and the calibration readers (issue 14).
+"""Writes the OpenCV fixtures of the lens models and the calibration readers
+(docs/calibration.md, How the fixtures were made).
 
     python3 scripts/make_calibration_fixtures.py
 

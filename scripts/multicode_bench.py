@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Busy synthetic frames (issue 12, "read every code in a busy frame"): qrpose against zxing-cpp
+"""Busy synthetic frames (2-6 codes each): qrpose against zxing-cpp
 (PyPI) on the same rendered JPEG bytes, share of codes read and time per frame.
 
     cargo build --release

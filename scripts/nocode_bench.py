@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Real camera frames without a code (issue 12): how long qrpose and zxing-cpp (PyPI) take to
+"""Real camera frames without a code: how long qrpose and zxing-cpp (PyPI) take to
 find nothing, on the same JPEG bytes.
 
     cargo build --release

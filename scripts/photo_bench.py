@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Real camera frames (issue 12): qrpose's detector against zxing-cpp (PyPI) on the same photo
+"""Real camera frames: qrpose's detector against zxing-cpp (PyPI) on the same photo
 bytes, read rate and time per category.
 
     cargo build --release

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Shared pieces of scripts/photo_bench.py and scripts/nocode_bench.py (issue 12, real camera
+"""Shared pieces of scripts/photo_bench.py and scripts/nocode_bench.py (real camera
 frames): the venv, running qrpose (`POST /v1/pose/image` to a `qrpose serve` kept running, or
 `qrpose estimate --image`) and zxing-cpp (PyPI) on the same bytes,
 quadrilateral IoU and label matching, percentiles. Not meant to be run by itself.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Schemathesis against the documents the server serves (issues 16 and 23): generated requests
+# Schemathesis against the documents the server serves (docs/service.md, Fuzzing): generated requests
 # for every operation, with every check schemathesis has (`--checks all`): no 5xx, status
 # codes, content types, headers and answers as documented, 405 for other methods, valid data
 # accepted (`positive_data_acceptance`: a request valid by the document is answered 2xx) and

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Load and soak of the stream, GET /v1/stream (docs/stream.md; issue 24, "Measured").
+"""Load and soak of the stream, GET /v1/stream (docs/stream.md, "Measured").
 
   stream_load.py latency [options]   N sessions at F fps for a duration: per-frame latency
                                      p50/p95/p99, frames answered and dropped, server CPU/RSS

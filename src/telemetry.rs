@@ -5,7 +5,7 @@
 //! `http::middleware`). Tests stay quiet unless they install a subscriber themselves.
 //!
 //! [`log_panics`] sends panics to the same log: the decoders and detectors run under
-//! `catch_unwind` (rqrr panics on some real photos, upstream issue #54), and the default
+//! `catch_unwind` (rqrr panics on some real photos, a bug upstream), and the default
 //! hook would print a multi-line message to standard error in the middle of JSON logs.
 
 use crate::config::LogFormat;

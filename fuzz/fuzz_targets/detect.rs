@@ -2,7 +2,7 @@
 //! never a panic of our own code, every corner finite. The first two bytes give the width
 //! and height (1-64 px), the rest the pixels (repeated to fill the frame).
 //!
-//! rqrr panics on some inputs (upstream rqrr issue #54); the service contains that, and so
+//! rqrr panics on some inputs (a bug upstream); the service contains that, and so
 //! does `qrpose_detect`. libFuzzer's panic hook would abort on it even inside
 //! `catch_unwind`, so this target replaces it with a silent one: a contained third-party
 //! panic is not a finding, while an uncontained panic anywhere still reaches libFuzzer's

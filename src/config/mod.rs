@@ -50,7 +50,7 @@ pub const DEFAULT_MAX_IMAGE_PIXELS: u64 = 50_000_000;
 /// for a decoded JPEG, up to 8 while a 16-bit RGBA PNG is decoded, plus the detector's copies.
 pub const MAX_MAX_IMAGE_PIXELS: u64 = 1_000_000_000;
 
-// ---- Connection limits (issue 16): header-read timeout, idle keep-alive timeout, open
+// ---- Connection limits: header-read timeout, idle keep-alive timeout, open
 // connections. Enforced by `http::conn`; see docs/service.md, "Limits".
 /// Default time a connection gets to deliver a complete request head, ms: counted from the
 /// accept for its first request, and from the first byte of each later one.
@@ -122,7 +122,7 @@ pub struct ServeArgs {
     #[arg(long, env = "QRPOSE_MAX_DETECT_MS", default_value_t = DEFAULT_MAX_DETECT_MS)]
     pub max_detect_ms: u64,
 
-    // ---- Connection limits (issue 16)
+    // ---- Connection limits
     /// Time a connection gets to send a complete request head, ms: from the accept for its
     /// first request, from the first byte for later ones; then it is closed.
     #[arg(long, env = "QRPOSE_HEADER_READ_TIMEOUT_MS", default_value_t = DEFAULT_HEADER_READ_TIMEOUT_MS)]
@@ -138,7 +138,7 @@ pub struct ServeArgs {
     pub max_connections: usize,
     // ---- end of connection limits
 
-    // ---- Memory budget (issue 16)
+    // ---- Memory budget
     /// Image pixels admitted at once (running and queued image requests, by declared width
     /// × height; WebP counts twice): beyond it 503 `overloaded`. Bounds the image path's
     /// memory (about 3 bytes a pixel, docs/deploy.md) [default: estimation workers ×
@@ -152,7 +152,7 @@ pub struct ServeArgs {
     pub max_inflight_body_bytes: Option<u64>,
     // ---- end of memory budget
 
-    // ---- Site (issue 14)
+    // ---- Site
     /// A site file (YAML, docs/site.md): cameras by id, marker sizes by payload, mounts and
     /// the map. Validated at start (a bad file: exit 2 with file, line and reason); reloaded
     /// on SIGHUP and `POST /v1/site/reload`.
@@ -180,14 +180,14 @@ impl Default for ServeArgs {
             shutdown_grace_ms: DEFAULT_SHUTDOWN_GRACE_MS,
             max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
             max_detect_ms: DEFAULT_MAX_DETECT_MS,
-            // Connection limits (issue 16).
+            // Connection limits.
             header_read_timeout_ms: DEFAULT_HEADER_READ_TIMEOUT_MS,
             idle_timeout_ms: DEFAULT_IDLE_TIMEOUT_MS,
             max_connections: DEFAULT_MAX_CONNECTIONS,
-            // Memory budget (issue 16).
+            // Memory budget.
             max_inflight_pixels: None,
             max_inflight_body_bytes: None,
-            // Site (issue 14).
+            // Site.
             site: None,
             stream: StreamArgs::default(),
             security: SecurityArgs::default(),
@@ -234,7 +234,7 @@ pub struct Settings {
     /// Largest detection deadline.
     pub max_detect: Duration,
 
-    // ---- Connection limits (issue 16)
+    // ---- Connection limits
     /// Time a connection gets to send a complete request head.
     pub header_read_timeout: Duration,
     /// Time a kept-alive connection may stay idle after its last response.
@@ -243,14 +243,14 @@ pub struct Settings {
     pub max_connections: NonZeroUsize,
     // ---- end of connection limits
 
-    // ---- Memory budget (issue 16)
+    // ---- Memory budget
     /// Image pixels admitted at once (weighted: WebP twice).
     pub max_inflight_pixels: u64,
     /// Image request bodies held at once, bytes.
     pub max_inflight_body_bytes: u64,
     // ---- end of memory budget
 
-    // ---- Site (issue 14)
+    // ---- Site
     /// The site file, loaded at start and on reload.
     pub site: Option<std::path::PathBuf>,
     // ---- end of site
@@ -274,15 +274,15 @@ impl Default for Settings {
             shutdown_grace: Duration::from_millis(DEFAULT_SHUTDOWN_GRACE_MS),
             max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
             max_detect: Duration::from_millis(DEFAULT_MAX_DETECT_MS),
-            // Connection limits (issue 16).
+            // Connection limits.
             header_read_timeout: Duration::from_millis(DEFAULT_HEADER_READ_TIMEOUT_MS),
             idle_timeout: Duration::from_millis(DEFAULT_IDLE_TIMEOUT_MS),
             max_connections: NonZeroUsize::new(DEFAULT_MAX_CONNECTIONS)
                 .unwrap_or(NonZeroUsize::MIN),
-            // Memory budget (issue 16).
+            // Memory budget.
             max_inflight_pixels: default_inflight_pixels(cpus, DEFAULT_MAX_IMAGE_PIXELS),
             max_inflight_body_bytes: default_inflight_body_bytes(cpus, DEFAULT_BODY_LIMIT_BYTES),
-            // Site (issue 14).
+            // Site.
             site: None,
             stream: StreamSettings::default(),
             security: SecuritySettings::default(),
@@ -389,7 +389,7 @@ impl TryFrom<ServeArgs> for Settings {
                 1,
                 MAX_MAX_DETECT_MS,
             )?),
-            // Connection limits (issue 16).
+            // Connection limits.
             header_read_timeout: Duration::from_millis(in_range(
                 "header-read-timeout-ms",
                 args.header_read_timeout_ms,
@@ -409,10 +409,10 @@ impl TryFrom<ServeArgs> for Settings {
                 MAX_MAX_CONNECTIONS,
             )?)
             .unwrap_or(NonZeroUsize::MIN),
-            // Memory budget (issue 16): set from the other settings just below.
+            // Memory budget: set from the other settings just below.
             max_inflight_pixels: 0,
             max_inflight_body_bytes: 0,
-            // Site (issue 14): the file is read by the caller, which owns the exit code.
+            // Site: the file is read by the caller, which owns the exit code.
             site: args.site,
             stream: StreamSettings::try_from(&args.stream)?,
             security: SecuritySettings::from(&args.security),

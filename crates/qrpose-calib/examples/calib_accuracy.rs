@@ -1,5 +1,5 @@
 //! Accuracy of the calibration on synthetic sets with known truth: for each lens model (on
-//! the camera of its round-trip test) and noise level, 20 seeded sets of the issue-25
+//! the camera of its round-trip test) and noise level, 20 seeded sets of the round trips'
 //! reference design (15 views of a 120 mm QR-code-like target, 236 points each, 0.3-0.7 m,
 //! tilted 10-40°). Prints one Markdown table row per case.
 //!

@@ -1,4 +1,4 @@
-//! Times one calibration of the issue-25 reference set: 15 views of a 120 mm QR-code-like
+//! Times one calibration of the round trips' reference set: 15 views of a 120 mm QR-code-like
 //! target (236 points each) at 0.3-0.7 m, tilted 10-40°, 0.2 px of noise, for each lens
 //! model, on the camera of that model's round-trip test. Reports the wall-clock median and
 //! minimum and, on Linux, the CPU time per solve from `/proc/self/schedstat` (time spent

@@ -7,8 +7,8 @@
 //! ideal(p) = K·D⁻¹(K⁻¹·p). The difference of two cameras' fields at p is
 //! ‖d_a(p) − d_b(p)‖; each camera uses its own K, so a focal length error shows only through
 //! its effect on the distortion, not as a scale of the whole image. The measure reported is
-//! a quantile of that difference over a grid of pixels on the image's inner part (issue 25:
-//! the 95th percentile over the inner 90 %).
+//! a quantile of that difference over a grid of pixels on the image's inner part (the tests
+//! and `scripts/calibration_compare.py` use the 95th percentile over the inner 90 %).
 //!
 //! The projection difference at p is ‖π_b(ray_a(p)) − p‖: the ray that camera a sees at p,
 //! projected by camera b. It includes the intrinsics' errors, and unlike the field

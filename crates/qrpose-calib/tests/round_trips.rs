@@ -1,4 +1,4 @@
-//! Synthetic round trips with a known camera (issue 25): 15 views of a 120 mm QR-code-like
+//! Synthetic round trips with a known camera: 15 views of a 120 mm QR-code-like
 //! target (236 points each) at 0.3-0.7 m, tilted 10-40°, spread over a 1280 × 720 image,
 //! with Gaussian noise from a seeded `StdRng`.
 
@@ -9,7 +9,7 @@ use qrpose_calib::{CameraCalibration, Options, View, calibrate};
 use qrpose_core::geometry::camera::{Camera, DistortionModel};
 use support::{IMAGE, barrel_camera, fisheye_camera, good_set, wide_angle_camera};
 
-/// Largest focal length error, fraction (issue 25).
+/// Largest focal length error, fraction.
 const FOCAL_TOL: f64 = 0.0015;
 /// Largest principal point error, px.
 const PRINCIPAL_POINT_TOL_PX: f64 = 2.0;

@@ -13,7 +13,7 @@ use qrpose_core::geometry::frames::{CameraPoint, NormalizedPoint, PixelPoint};
 use serde::Deserialize;
 use std::sync::LazyLock;
 
-/// Largest difference from OpenCV's pixels allowed, px (issue 14).
+/// Largest difference from OpenCV's pixels allowed, px.
 const MAX_OPENCV_DIFFERENCE_PX: f64 = 1e-6;
 /// Largest round-trip error allowed, px.
 const MAX_ROUND_TRIP_PX: f64 = 1e-6;

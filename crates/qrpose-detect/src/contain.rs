@@ -3,9 +3,9 @@
 //!
 //! The one place where this workspace catches unwinding panics from code it does not
 //! control: the image decoders ([`crate::decode`]), the detector backends (rqrr's
-//! `detect_grids`, upstream issue #54; rxing; zxing-cpp's bindings), rqrr's decoder in
-//! [`crate::search::reread()`], and the HTTP service's estimation workers. Each site decides what a
-//! panic means there (nothing found, a corrupt image, a 500).
+//! `detect_grids`, which panics on some real photos; rxing; zxing-cpp's bindings), rqrr's
+//! decoder in [`crate::search::reread()`], and the HTTP service's estimation workers. Each
+//! site decides what a panic means there (nothing found, a corrupt image, a 500).
 //!
 //! The closure runs under [`std::panic::AssertUnwindSafe`]: callers assert that nothing
 //! the closure left half-updated is observed after a panic. Every site here drops the

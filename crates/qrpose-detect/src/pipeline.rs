@@ -13,7 +13,7 @@
 //!
 //! The detector knows no camera, so it refines corners along straight sides. When the
 //! setup's camera distorts, every code is refined again through its lens
-//! ([`refine_corners_through`]; a fisheye bows the sides by pixels, issue 14); without
+//! ([`refine_corners_through`]; a fisheye bows the sides by pixels); without
 //! distortion the detector's corners are used as they are.
 
 use crate::refine::corners::{Lens, RefineStatus, refine_corners_through};

@@ -13,7 +13,7 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Largest difference from OpenCV's projections allowed, px (issue 14).
+/// Largest difference from OpenCV's projections allowed, px.
 const MAX_OPENCV_DIFFERENCE_PX: f64 = 1e-6;
 
 #[derive(Debug, Deserialize)]

@@ -23,7 +23,7 @@ pub const CODE_MM: f64 = 120.0;
 /// Modules per side (a version-4 symbol).
 pub const MODULES: u32 = 33;
 
-/// The reference camera of issue 25: off-centre principal point, barrel plumb_bob.
+/// The reference camera: off-centre principal point, barrel plumb_bob.
 pub fn barrel_camera() -> Camera {
     camera(
         (1000.0, 1005.0, 650.0, 350.0),
@@ -267,7 +267,7 @@ pub fn set_of(camera: &Camera, specs: &[ViewSpec], noise_px: f64, seed: u64) -> 
     Set { views, poses }
 }
 
-/// The reference set of issue 25: 15 views of the 120 mm code at 0.3-0.7 m, tilted 10-40°,
+/// The reference set: 15 views of the 120 mm code at 0.3-0.7 m, tilted 10-40°,
 /// spread over the image, with `noise_px` of noise.
 pub fn good_set(camera: &Camera, noise_px: f64, seed: u64) -> Set {
     let specs: Vec<ViewSpec> = GOOD_POSITIONS

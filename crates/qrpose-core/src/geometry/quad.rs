@@ -270,7 +270,7 @@ mod tests {
                 "1e{exponent}"
             );
         }
-        // The example: overflow was reported as "corners 1 and 2 coincide".
+        // Huge but finite corners: an overflow must not report "corners 1 and 2 coincide".
         let huge = [(0.0, 0.0), (1e200, 0.0), (1e200, 1e200), (0.0, 1e200)];
         assert!(qr(huge).is_ok());
         let largest = [

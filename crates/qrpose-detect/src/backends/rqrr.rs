@@ -1,7 +1,7 @@
 //! The rqrr backend (pure Rust, quirc's algorithm).
 //!
 //! Two upstream traps are handled here:
-//! - `PreparedImage::detect_grids` panics on some real photos (upstream rqrr issue #54,
+//! - `PreparedImage::detect_grids` panics on some real photos (reported upstream,
 //!   <https://github.com/WanzenBug/rqrr/issues/54>); the whole call runs inside
 //!   [`crate::contain::contain`] and a panic counts as "nothing found".
 //! - `Grid::bounds` maps module coordinates (0, 0), (N + 1, 0), (N + 1, N + 1), (0, N + 1):

@@ -120,7 +120,7 @@ fn decode(n: usize, dark: Vec<bool>) -> Option<Reread> {
     let grid = rqrr::Grid::new(ModuleGrid { n, dark });
     let mut payload = Vec::new();
     // rqrr's decoder indexes tables by version and bit position; contain any panic on a
-    // grid that is not a QR symbol, as for its detector (upstream issue #54).
+    // grid that is not a QR symbol, as for its detector (see `backends::rqrr`).
     let decoded = contain(|| grid.decode_to(&mut payload).is_ok()).unwrap_or(false);
     decoded.then(|| Reread {
         text: String::from_utf8(payload.clone()).ok(),

@@ -1,4 +1,4 @@
-//! The module grid seen through a lens (issue 14). The printed symbol is a plane, so its
+//! The module grid seen through a lens. The printed symbol is a plane, so its
 //! module grid maps to the image by one homography only in *undistorted* coordinates; a
 //! distorting lens (a fisheye most of all) bows its straight lines in the photo. The
 //! refinement therefore keeps its homography H from module coordinates to **ideal

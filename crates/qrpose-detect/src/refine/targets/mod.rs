@@ -1,5 +1,5 @@
 //! A decoded symbol as a calibration target: many points of known position on the printed
-//! code, each measured in the photo to a fraction of a pixel (issue 25, item 1).
+//! code, each measured in the photo to a fraction of a pixel.
 //!
 //! [`calibration_points`] starts from a refined [`DetectedCode`] (its sub-pixel corners and
 //! module count N, from which the version and so every function pattern is known) and:

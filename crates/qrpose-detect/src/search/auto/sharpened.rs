@@ -320,12 +320,12 @@ fn reread_small_located(image: &GrayImage, read: &mut Vec<Candidate>) {
 /// size twice as far away as one read at 6 px per module is at 3, so a frame that shows
 /// codes at this scale is one where such codes are likely, next to the ones read (a shelf
 /// or a wall of labels at several distances). Frames of larger codes only do not pay for
-/// it, and frames with no code pay nothing more than before. Measured 2026-11-24: on the
-/// rendered multi-code frames of issue 12 (2-6 codes, 1280 × 720) reading every frame's
-/// sharpened copy doubled `balanced`'s time and read 14 more codes (10 of ≥ 40 px); this
-/// trigger reads 13 of them (all 10), while on the BoofCV development photos (one or a few
-/// codes, mostly at more px per module) 34 more of 272 photos pay the read (68 with those
-/// where nothing was found), where reading every frame ≤ 1920 px meant 150.
+/// it, and frames with no code pay nothing more than before. Measured 2026-11-24: on the rendered
+/// multi-code frames of `scripts/multicode_bench.py` (2-6 codes, 1280 × 720) reading every frame's
+/// sharpened copy doubled `balanced`'s time and read 14 more codes (10 of ≥ 40 px); this trigger
+/// reads 13 of them (all 10), while on the BoofCV development photos (one or a few codes, mostly at
+/// more px per module) 34 more of 272 photos pay the read (68 with those where nothing was found),
+/// where reading every frame ≤ 1920 px meant 150.
 pub(crate) const SHARPENED_TRIGGER_MAX_PX_PER_MODULE: f64 = 6.0;
 
 /// The small-code trigger of [`find_sharpened`] also wants this many codes read: a frame
