@@ -30,3 +30,8 @@ pub mod transform;
 pub use error::{Reason, SiteError};
 pub use site::{CameraSource, MappedCode, Site, SiteCamera};
 pub use sizes::{MarkerSizes, SizeLookup, SizeSource};
+
+/// The README example, compiled and run as a doctest.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
