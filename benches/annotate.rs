@@ -1,5 +1,5 @@
 //! The price of the overlay: `POST /v1/pose/image/annotated` against `POST /v1/pose/image`
-//! on the same 1280×720 frame (issue 15's target: at most 1.3×), as the two routes' worker
+//! on the same 1280×720 frame (target: at most 1.3×), as the two routes' worker
 //! jobs run them. The HTTP layer around each is the same and costs tens of µs. The frame is
 //! a grey JPEG, so the JPEG variant splices (the `jpeg-overlay` crate, crates/jpeg-overlay,
 //! re-encodes only the blocks the overlay touches); "drawing only" times `annotated_image`

@@ -1,9 +1,9 @@
 //! Criterion benchmarks of one pose solve per method, on realistic noisy corners.
 //!
 //! `cargo bench --bench estimate`. Inputs: the first 256 cases of the default
-//! `qrpose::sim::dataset` (50 mm marker at 200-1500 mm in front of a 1280×720 camera with
+//! `qrpose_sim::dataset` (50 mm marker at 200-1500 mm in front of a 1280×720 camera with
 //! fx = 1000 px, tilt up to 60°, σ = 0.5 px corner noise), cycled so that every iteration
-//! solves a different view. Targets (issue 2, one core): paper ≤ 1 µs, depth-newton ≤ 2 µs,
+//! solves a different view. Targets (one core): paper ≤ 1 µs, depth-newton ≤ 2 µs,
 //! reprojection (both candidates and LM) ≤ 10 µs. `scripts/bench_opencv_pose.sh` times
 //! OpenCV's IPPE_SQUARE + RefineLM on the same cases in C++.
 
@@ -11,7 +11,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use qrpose::api::{estimate_corners, request::CornersRequest};
 use qrpose::estimate::{Method, ValidSolver, estimate_pose};
 use qrpose::geometry::{marker::CornerOrder, quad::ImageQuad};
-use qrpose::sim::dataset::{DatasetSpec, generate};
+use qrpose_sim::dataset::{DatasetSpec, generate};
 use std::hint::black_box;
 
 const CASES: usize = 256;

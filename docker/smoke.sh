@@ -199,10 +199,12 @@ check "the Compose limits: $LIMIT_MEMORY_TEXT, $LIMIT_CPUS CPUs" \
 step "the curl suite against the container"
 IMAGES="$WORK/images"
 mkdir -p "$IMAGES"
-# The image renders its own test photos (`qrpose render`), with no network.
+# The test photos come from the renderer built on the host (`qrpose-sim render`): the image
+# holds the service alone.
+(cd "$SRC" && cargo build --release --quiet -p qrpose-sim --bin qrpose-sim)
 cat >"$WORK/render.sh" <<EOF
 #!/bin/sh
-exec "$DOCKER" run --rm --network none -u "$(id -u):$(id -g)" -v "$IMAGES:$IMAGES" "$IMAGE" "\$@"
+exec "$SRC/target/release/qrpose-sim" "\$@"
 EOF
 chmod +x "$WORK/render.sh"
 "$WORK/render.sh" render --out "$IMAGES/curl-photo.jpg" --payload SKU-1 --marker-size-mm 50 \

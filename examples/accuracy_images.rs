@@ -25,7 +25,7 @@ use qrpose::geometry::{
     marker::{CornerOrder, Marker},
     quad::ImageQuad,
 };
-use qrpose::render::{EcLevel, Effects, Encoding, Scene, ground_truth, render};
+use qrpose_sim::render::{EcLevel, Effects, Encoding, Scene, ground_truth, render};
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use rayon::prelude::*;
 use serde_json::json;
@@ -91,7 +91,7 @@ fn make_case(seed: u64, projected_rule: bool) -> Option<Case> {
         Camera::from_pixels(f, f, f64::from(w) / 2.0 - 0.5, f64::from(h) / 2.0 - 0.5).ok()?;
     let payload = random_payload(&mut rng);
     let ec_level = EcLevel::M;
-    let (n, _) = qrpose::render::symbol_modules(payload.as_bytes(), ec_level).ok()?;
+    let (n, _) = qrpose_sim::render::symbol_modules(payload.as_bytes(), ec_level).ok()?;
     for _ in 0..200 {
         let size_mm = rng.gen_range(30.0..100.0);
         let max_distance = (size_mm / n as f64 * f / MIN_MODULE_PX).min(1200.0);
@@ -197,7 +197,7 @@ fn pose_error(
     (rot, (est.centre_mm - centre).norm())
 }
 
-fn evaluate(case: &Case, truth: &qrpose::render::GroundTruth, codes: &[DetectedCode]) -> Eval {
+fn evaluate(case: &Case, truth: &qrpose_sim::render::GroundTruth, codes: &[DetectedCode]) -> Eval {
     let tc = to_points(&truth.corners_px);
     let centre = |c: &[PixelPoint]| {
         PixelPoint::new(
@@ -255,7 +255,7 @@ fn evaluate(case: &Case, truth: &qrpose::render::GroundTruth, codes: &[DetectedC
         }
         let model: Vec<_> = qrpose::detect::refine::finder_model_points(n)
             .iter()
-            .map(|m| qrpose::render::marker_point(m.u, m.v, &s.marker, n))
+            .map(|m| qrpose_sim::render::marker_point(m.u, m.v, &s.marker, n))
             .collect();
         if let Ok(est) = estimate_planar_points(&model, &fc, &s.camera, &s.marker, &params) {
             let (r, p) = pose_error(&est, &s.pose, &s.marker);

@@ -3,7 +3,7 @@
 //! `cargo run --release --example ambiguity_study`
 //!
 //! For corner noise σ = 0.25, 0.5, 1 and 2 px, solves a seeded noisy dataset each
-//! (`qrpose::sim::dataset`: 50 mm marker at 200-1500 mm, tilt 0-60°, 1280×720, f = 1000 px,
+//! (`qrpose_sim::dataset`: 50 mm marker at 200-1500 mm, tilt 0-60°, 1280×720, f = 1000 px,
 //! 5000 cases) with the `reprojection` method, `corner_sigma_px` = σ, and records whether the
 //! reported pose is the wrong one of the pair (the alternative is nearer the truth). It then
 //! compares two ways to set `ambiguous`: the alternative's posterior probability
@@ -14,7 +14,7 @@
 
 use qrpose::estimate::{DISTINCT_ROTATION_DEG, ReprojectionParams, Solver, estimate_pose};
 use qrpose::geometry::{euler::angle_between, marker::CornerOrder, quad::ImageQuad};
-use qrpose::sim::dataset::{DatasetSpec, generate};
+use qrpose_sim::dataset::{DatasetSpec, generate};
 
 struct Record {
     ratio: f64,

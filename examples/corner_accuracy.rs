@@ -1,15 +1,15 @@
 //! Accuracy of the three methods on noisy corners, and the shared dataset for OpenCV.
 //!
 //! `cargo run --release --example corner_accuracy -- [OUT_DIR] [SIGMA_PX] [CASES] [SEED]`
-//! writes `OUT_DIR/corners.csv` (the dataset, see `qrpose::sim::dataset`) and
+//! writes `OUT_DIR/corners.csv` (the dataset, see `qrpose_sim::dataset`) and
 //! `OUT_DIR/qrpose_results.csv` (per case and method: rotation error in degrees, centre
 //! error in mm, converged, ambiguous), and prints a summary. `scripts/accuracy_corners.py`
 //! runs it and adds OpenCV's solvePnP on the same corners.
 
 use qrpose::estimate::{Method, ValidSolver, Warning, estimate_pose};
 use qrpose::geometry::{euler::angle_between, marker::CornerOrder, quad::ImageQuad};
-use qrpose::sim::dataset::{DatasetSpec, generate, to_csv};
-use qrpose::sim::report::quantile;
+use qrpose_sim::dataset::{DatasetSpec, generate, to_csv};
+use qrpose_sim::report::quantile;
 use std::fmt::Write;
 use std::path::PathBuf;
 

@@ -6,7 +6,7 @@
 //! cargo run --release --example stream_study -- [approach|still|pan|all] [--frames N]
 //! ```
 //!
-//! Each built-in video (`qrpose render --sequence NAME`, docs/rendering.md) is run through
+//! Each built-in video (`qrpose-sim render --sequence NAME`, docs/rendering.md) is run through
 //! the application layer's `TrackSession` (what `GET /v1/stream` and `qrpose track` run),
 //! frame by frame with its capture times; each code is sized by its payload through a site
 //! made from the video's codes. The single-frame answer is the photo's answer to the same
@@ -60,8 +60,8 @@ use qrpose::app::{
     TrackSession, TrackSetup, estimate_image,
 };
 use qrpose::detect::cancel::CancelFlag;
-use qrpose::render::encode;
-use qrpose::render::sequence::{BUILTIN_SEQUENCES, Sequence, builtin_sequence};
+use qrpose_sim::render::encode;
+use qrpose_sim::render::sequence::{BUILTIN_SEQUENCES, Sequence, builtin_sequence};
 use qrpose_site::Site;
 use qrpose_track::{TrackStatus, TrackerParams};
 use std::collections::HashMap;

@@ -3,7 +3,7 @@
 environment, the test images, and the load run against a server confined to a cgroup.
 
   limits_load.py compose SERVICE COMPOSE_FILE ENV_OUT   shell assignments on stdout
-  limits_load.py images OUT_DIR BIN                     the test images (cached)
+  limits_load.py images OUT_DIR SIM_BIN                 the test images (cached; SIM_BIN: qrpose-sim)
   limits_load.py load OUT_DIR IMAGE_DIR BASE_URL PID MEMCG CGV SECONDS CLIENTS BOUND_MIB LIMIT_BYTES
 
 Standard library only, except `compose`, which needs PyYAML (YAML merge keys as Compose

@@ -54,6 +54,9 @@ else
   cargo build --release --quiet
   BIN=target/release/qrpose
 fi
+# The test photos' renderer (`qrpose-sim render`).
+cargo build --release --quiet -p qrpose-sim --bin qrpose-sim
+SIM=target/release/qrpose-sim
 
 # ---- the service's limits and environment
 PY=python3
@@ -131,7 +134,7 @@ echo "service $SERVICE: ${LIMIT_CPUS} CPUs, ${LIMIT_MEMORY_TEXT} ($LIMIT_MEMORY_
 
 # ---- the test images (made once, kept in $OUT)
 echo "images:"
-python3 scripts/limits_load.py images "$OUT/images" "$BIN"
+python3 scripts/limits_load.py images "$OUT/images" "$SIM"
 
 # ---- the server, inside the cgroup, with the service's environment alone (as in the
 # container) but listening on a free loopback port.

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Load test of `qrpose serve` on this machine: requests/s and p50/p99 latency of
-# POST /v1/pose/corners, POST /v1/pose/image (a 1280x720 JPEG rendered by `qrpose render`)
+# POST /v1/pose/corners, POST /v1/pose/image (a 1280x720 JPEG rendered by `qrpose-sim render`)
 # and GET /healthz (the ceiling) on the same server in the same run, then a soak of the
 # corners endpoint while resident memory (VmRSS) is sampled.
 #
@@ -43,6 +43,7 @@ fi
 
 cargo build --release --quiet
 BIN=target/release/qrpose
+SIM=target/release/qrpose-sim
 
 # The access log stays on (info, one line per request), as in production; it goes to a
 # file so that the terminal is not the bottleneck.
@@ -59,7 +60,7 @@ echo "server $SERVER_PID on $BASE_URL ($(nproc) CPUs, load average $(cut -d' ' -
 
 # The image endpoint's photo: a 50 mm code 400 mm in front of a 1280x720 camera (f = 1000 px),
 # tilted, blurred, noisy, unevenly lit, with background clutter; JPEG quality 90.
-"$BIN" render --out "$OUT/photo.jpg" --payload SKU-1 --marker-size-mm 50 --x-mm 20 --z-mm 400 \
+"$SIM" render --out "$OUT/photo.jpg" --payload SKU-1 --marker-size-mm 50 --x-mm 20 --z-mm 400 \
   --alpha-deg 20 --beta-deg -10 --blur-px 0.8 --noise 2 --lighting 0.2 --clutter 10 --seed 3 \
   >"$OUT/photo.json"
 IMAGE_QUERY="fx_px=1000&fy_px=1000&cx_px=639.5&cy_px=359.5&marker_size_mm=50"

@@ -7,7 +7,7 @@
     python3 scripts/multicode_bench.py --qrpose-flag=--detector=rxing --json target/multicode.json
     python3 scripts/multicode_bench.py --frames 10 --first-seed 100 --qrpose-bin /tmp/qrpose
     python3 scripts/multicode_bench.py --qrpose-bin target-zxing/release/qrpose \\
-        --render-bin target/release/qrpose   # a `--features zxing-cpp` build, same frames
+        --render-bin target/release/qrpose-sim   # a `--features zxing-cpp` build, same frames
 
 Step 1, the frames (deterministic): for SEED in --first-seed .. --first-seed + --frames - 1,
 `RENDER_BIN render --random-scene SEED --seed SEED --width-px W --height-px H --blur-px B
@@ -17,7 +17,7 @@ never overlapping, all inside the frame, fx = fy in 950-1050 px. The effects com
 random.Random(f"multicode:{SEED}"): JPEG quality an integer in 75-95, Gaussian blur σ uniform in
 0.5-1.2 px, sensor noise σ uniform in 1-4 grey levels. The JSON the renderer prints is the
 ground truth: `codes[].payload` and `codes[].truth.corners_px`; the camera is
-`camera.fx_px ...`. RENDER_BIN (--render-bin) defaults to --qrpose-bin; pass the same
+`camera.fx_px ...`. RENDER_BIN (--render-bin) defaults to the qrpose-sim beside --qrpose-bin; pass the same
 --render-bin to runs that should see identical frames (the output prints a hash of all frames).
 
 Step 2, the reading: `POST /v1/pose/image` of OUT/scene-SEED.jpg to one `qrpose serve` kept
@@ -152,14 +152,15 @@ def main():
     ap.add_argument("--height-px", type=int, default=720)
     ap.add_argument("--out", default=str(pc.ROOT / "target" / "multicode"),
                     help="folder for the rendered frames (default target/multicode)")
-    ap.add_argument("--render-bin", help="qrpose binary that renders the frames (default: --qrpose-bin)")
+    ap.add_argument("--render-bin", help="qrpose-sim binary that renders the frames (default: "
+                    "qrpose-sim beside --qrpose-bin)")
     ap.add_argument("--min-px", type=float, default=40.0,
                     help="second read %% over codes whose shortest side is >= this, px (default 40)")
     pc.add_common_args(ap)
     args = ap.parse_args()
     pc.ensure_venv()
     flags = pc.qrpose_flags(args)
-    render_bin = args.render_bin or args.qrpose_bin
+    render_bin = args.render_bin or str(Path(args.qrpose_bin).with_name("qrpose-sim"))
     for b in (args.qrpose_bin, render_bin):
         if not Path(b).exists():
             sys.exit(f"no qrpose binary at {b}: `cargo build --release` first")

@@ -8,10 +8,10 @@
 #
 #   scripts/schemathesis.sh [BINARY] [SECONDS]      # defaults: target/debug/qrpose, 180
 #
-# Two servers, one with a site (cameras by id, sizes by payload) and one without, serve two
-# different documents (openapi/openapi-site.json and openapi/openapi.json); both check
-# bearer tokens (`--auth-file`), as the documents say, and schemathesis holds a valid one. Each gets two
-# bounded runs with a fixed seed, a quarter of SECONDS each:
+# Four servers: with a site (cameras by id, sizes by payload) and without, each with an auth
+# file (its document declares the bearer scheme and each operation's scope; schemathesis
+# holds a valid token) and without one (its document asks for no token). Each serves its
+# own document and gets two bounded runs with a fixed seed, an eighth of SECONDS each:
 #   1. positive data (valid by the document) for every operation. A valid request is refused
 #      only for what no schema can say (the residue: src/http/openapi/requests.rs); the
 #      hooks (scripts/schemathesis_hooks.py) map generated requests into the valid subset
@@ -25,8 +25,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 binary=${1:-target/debug/qrpose}
+# The photos come from the renderer beside it (`cargo test` and `cargo build` build both).
+render="$(dirname "$binary")/qrpose-sim"
 seconds=${2:-180}
-quarter=$((seconds / 4))
+eighth=$((seconds / 8))
 venv=target/st-venv
 report=target/schemathesis
 version=4.32.5
@@ -41,14 +43,14 @@ rm -rf "$report"
 mkdir -p "$report"
 # Photos of codes for the image endpoints and the calibration, and the site of the server
 # that has one.
-"$binary" render --out "$report/code.png" --z-mm 400 >/dev/null
-"$binary" render --out "$report/code.jpg" --z-mm 600 --payload TOTE-1 >/dev/null
+"$render" render --out "$report/code.png" --z-mm 400 >/dev/null
+"$render" render --out "$report/code.jpg" --z-mm 600 --payload TOTE-1 >/dev/null
 # Views of one code from four angles, small, for the calibration.
 views=()
 for angles in "0 0" "25 0" "0 25" "-20 15"; do
   read -r alpha beta <<<"$angles"
   view="$report/view_${alpha}_${beta}.jpg"
-  "$binary" render --out "$view" --z-mm 250 --alpha-deg "$alpha" --beta-deg "$beta" \
+  "$render" render --out "$view" --z-mm 250 --alpha-deg "$alpha" --beta-deg "$beta" \
     --width-px 320 --height-px 240 >/dev/null
   views+=("$view")
 done
@@ -59,10 +61,11 @@ cameras:
 markers:
   default_size_mm: 50
 YAML
-# The documents describe a server that checks tokens (`--auth-file`, src/http/openapi/security.rs:
-# each protected operation names its scope); both servers run with one, and schemathesis
-# sends the token of a client with every scope through the documents' `bearer` scheme, so
-# that `ignored_auth` checks that a missing or wrong token is refused (401).
+# The documents of the servers with an auth file describe a server that checks tokens
+# (src/http/openapi/security.rs: each protected operation names its scope); schemathesis
+# sends the token of a client with every scope through their `bearer` scheme, so that
+# `ignored_auth` checks that a missing or wrong token is refused (401). The servers without
+# one serve a document with no security requirement, and get no token.
 export QRPOSE_ST_TOKEN=$("$binary" auth add schemathesis --scopes pose,site,admin,metrics \
   --file "$report/auth.yaml" 2>/dev/null)
 [[ -n "$QRPOSE_ST_TOKEN" ]] || { echo "qrpose auth add printed no token" >&2; exit 1; }
@@ -102,13 +105,19 @@ start site --auth-file "$report/auth.yaml" --site "$report/site.yaml"
 site_url=$url
 start no-site --auth-file "$report/auth.yaml"
 plain_url=$url
+start site-open --site "$report/site.yaml"
+site_open_url=$url
+start no-site-open
+plain_open_url=$url
+: >"$report/open.toml"
 
 # Runs schemathesis: $1 the server's name, $2 its URL, $3 positive or negative.
 failed=()
 run() {
   local name=$1 url=$2 mode=$3
-  local site_file=
-  [[ $name == site ]] && site_file="$report/site.yaml"
+  local site_file= config="$report/schemathesis.toml"
+  [[ $name == site* ]] && site_file="$report/site.yaml"
+  [[ $name == *-open ]] && config="$report/open.toml"
   echo "== $name, $mode data"
   # Fuzzing only: the examples phase would send the document's examples with an `image`
   # part that is no image and cannot be mapped without schemathesis counting it negative.
@@ -116,8 +125,8 @@ run() {
   # and then with "SystemError: AST constructor recursion depth mismatch", CPython's
   # AST recursion counter not being thread-safe (python/cpython#106905, Python 3.11).
   if ! QRPOSE_ST_MODE=$mode QRPOSE_ST_SITE=$site_file QRPOSE_ST_DROPPED="$report/$name-$mode.dropped" \
-    "$venv/bin/st" --config-file "$report/schemathesis.toml" run "$url/openapi.json" --seed 1 --mode "$mode" --phases fuzzing \
-    --max-time "$quarter" --checks all --no-color --workers 1 --request-timeout 30 \
+    "$venv/bin/st" --config-file "$config" run "$url/openapi.json" --seed 1 --mode "$mode" --phases fuzzing \
+    --max-time "$eighth" --checks all --no-color --workers 1 --request-timeout 30 \
     --suppress-health-check all --generation-database none \
     --report har --report-har-path "$report/$name-$mode.har"; then
     failed+=("$name $mode")
@@ -129,6 +138,10 @@ run site "$site_url" positive
 run site "$site_url" negative
 run no-site "$plain_url" positive
 run no-site "$plain_url" negative
+run site-open "$site_open_url" positive
+run site-open "$site_open_url" negative
+run no-site-open "$plain_open_url" positive
+run no-site-open "$plain_open_url" negative
 
 "$venv/bin/python" - "${QRPOSE_ST_MIN_OK_SHARE:-0}" "$report"/*.har <<'EOF'
 import collections, json, sys

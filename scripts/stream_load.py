@@ -17,7 +17,7 @@
   scripts/stream_load.py latency --qrpose-bin target/release/qrpose
   scripts/stream_load.py soak --qrpose-bin target/release/qrpose --duration-s 300
 
-The server: `--qrpose-bin BIN` renders the frames (`BIN render --sequence NAME --out DIR
+The server: `--qrpose-bin BIN`; the qrpose-sim beside it renders the frames (`qrpose-sim render --sequence NAME --out DIR
 --frames N`, cached under target/stream-load/; `--frames-dir` takes frames rendered before)
 and, without `--url`, is started as
 `BIN serve --addr 127.0.0.1:0 [--server-arg ARG]...` (its "listening on" line read, its log
@@ -73,7 +73,7 @@ def ensure_venv():
 
 
 def render_frames(qrpose_bin, sequence, count):
-    """JPEG frames of `qrpose render --sequence`, rendered once and cached (keyed by the
+    """JPEG frames of `qrpose-sim render --sequence`, rendered once and cached (keyed by the
     binary's size and time). Returns (frames as bytes, sequence.json, seconds spent)."""
     out = WORK / "frames" / f"{sequence}-{count}"
     stamp = out / "stamp.json"
@@ -84,7 +84,8 @@ def render_frames(qrpose_bin, sequence, count):
         out.mkdir(parents=True, exist_ok=True)
         for old in out.glob("frame_*.jpg"):
             old.unlink()
-        subprocess.run([qrpose_bin, "render", "--sequence", sequence, "--out", str(out),
+        sim_bin = Path(qrpose_bin).with_name("qrpose-sim")
+        subprocess.run([str(sim_bin), "render", "--sequence", sequence, "--out", str(out),
                         "--frames", str(count)], check=True, stdout=subprocess.DEVNULL)
         stamp.write_text(json.dumps(key))
     files = sorted(out.glob("frame_*.jpg"))
@@ -299,7 +300,7 @@ def parse_args(argv):
     p.add_argument("--server-arg", action="append", default=[],
                    help="an argument of `qrpose serve` (repeat)")
     p.add_argument("--sequence", default="approach")
-    p.add_argument("--frames-dir", help="frames already rendered (the --out of `qrpose render "
+    p.add_argument("--frames-dir", help="frames already rendered (the --out of `qrpose-sim render "
                    "--sequence`); nothing is rendered")
     p.add_argument("--frames", type=int, default=120, help="frames to render (played back "
                    "and forth)")

@@ -6,9 +6,7 @@
 //! |---|---|
 //! | [`geometry`] | frames, camera and distortion, marker, corner quadrilaterals, Euler angles (core) |
 //! | [`estimate`] | pose from four corners: `paper`, `depth-newton`, `reprojection` (core) |
-//! | [`sim`] | the paper's simulation: grid, Table 10, heatmaps, Tables 5-9, noisy datasets |
 //! | [`detect`] | image bytes to QR codes: decoding, detector backends, sub-pixel corners |
-//! | [`render`] | synthetic photos of a QR code at a known pose, with ground truth |
 //! | [`annotate`] | annotated images: the overlay of an image response drawn on the photo |
 //! | [`app`] | the application layer: one validated `Setup`, one function per operation |
 //! | [`api`] | wire types shared by the HTTP service and the CLI, and their validation |
@@ -27,5 +25,3 @@ pub mod telemetry;
 
 pub use qrpose_core::{estimate, geometry};
 pub use qrpose_detect as detect;
-pub use qrpose_sim as sim;
-pub use qrpose_sim::render;

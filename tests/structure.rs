@@ -238,10 +238,13 @@ fn no_commit_hash_in_the_readme_or_the_reference_pages() {
     );
 }
 
-/// The words serde's messages start with that once chose a problem's code (`missing_field`,
-/// `unknown_field`, `unknown_variant`): the code now comes from the typed error of
-/// `src/api/shape`, and no code outside tests reads them.
+/// The words serde's messages start with that choose a problem's code (`missing_field`,
+/// `unknown_field`, `unknown_variant`): only [`SERDE_WORDING_READER`] reads them, pinned by
+/// its tests against serde's own constructors.
 const SERDE_MESSAGE_WORDS: [&str; 3] = ["missing field", "unknown field", "unknown variant"];
+
+/// The one file of the service that reads serde's wording.
+const SERDE_WORDING_READER: &str = "src/api/problem/shape.rs";
 
 /// The code of a source file without its tests: what comes before its first
 /// `#[cfg(test)]`, nothing for a file of tests (`tests.rs`, or under a `tests/` folder).
@@ -273,19 +276,26 @@ fn the_serde_message_check_finds_message_matching_and_spares_tests() {
     );
     let in_tests = format!("fn f() {{}}\n#[cfg(test)]\nmod tests {{ {matching} }}");
     assert!(serde_message_literals(code_outside_tests(path, &in_tests)).is_empty());
-    let tests_file = Path::new("src/api/shape/tests.rs");
+    let tests_file = Path::new("src/api/problem/tests.rs");
     assert!(serde_message_literals(code_outside_tests(tests_file, matching)).is_empty());
     let docs = "/// refused as `missing_field`, a missing field\n";
     assert!(serde_message_literals(code_outside_tests(path, docs)).is_empty());
 }
 
 #[test]
-fn no_error_code_is_chosen_from_serdes_message_text() {
+fn only_one_file_chooses_error_codes_from_serdes_message_text() {
     let mut files = Vec::new();
     rust_files(&Path::new(ROOT).join("src"), &mut files);
     assert!(files.len() > 40, "{} files", files.len());
+    let reader = Path::new(ROOT).join(SERDE_WORDING_READER);
+    let reader_text = std::fs::read_to_string(&reader).expect("the wording reader");
+    assert!(
+        !serde_message_literals(code_outside_tests(&reader, &reader_text)).is_empty(),
+        "{SERDE_WORDING_READER} reads serde's wording"
+    );
     let found: Vec<String> = files
         .iter()
+        .filter(|file| **file != reader)
         .flat_map(|file| {
             let text = std::fs::read_to_string(file).expect("utf-8");
             serde_message_literals(code_outside_tests(file, &text))
@@ -295,6 +305,146 @@ fn no_error_code_is_chosen_from_serdes_message_text() {
         .collect();
     assert!(
         found.is_empty(),
-        "choose codes from crate::api::shape's typed errors, not serde's text: {found:?}"
+        "choose codes through api::problem::ShapeKind, not serde's text: {found:?}"
+    );
+}
+
+/// The service binary links neither the renderer nor the simulation's plotting and progress
+/// crates: `qrpose render` and `qrpose simulate` are `qrpose-sim`'s.
+#[test]
+fn the_service_links_no_renderer_plotting_or_progress_bar() {
+    let names = dependency_names("qrpose");
+    assert!(names.iter().any(|n| n == "axum"), "{names:?}");
+    for forbidden in ["qrpose-sim", "plotters", "indicatif", "rayon"] {
+        assert!(
+            !names.iter().any(|n| n == forbidden),
+            "qrpose depends on {forbidden}"
+        );
+    }
+}
+
+/// Most test binaries the root crate may build: each links the whole service, so each
+/// costs a link; `tests/NAME.rs` and `tests/NAME/main.rs` are one each, and the library's
+/// and the binary's unit tests one each.
+const ROOT_TEST_BINARIES_MAX: usize = 12;
+
+#[test]
+fn the_root_crate_builds_at_most_twelve_test_binaries() {
+    let mut binaries = vec!["src/lib.rs".to_owned(), "src/main.rs".to_owned()];
+    for entry in std::fs::read_dir(Path::new(ROOT).join("tests")).expect("tests/") {
+        let path = entry.expect("an entry").path();
+        let name = path.display().to_string();
+        if path.extension().is_some_and(|e| e == "rs") || path.join("main.rs").is_file() {
+            binaries.push(name);
+        }
+    }
+    assert!(binaries.len() > 4, "{binaries:?}");
+    assert!(
+        binaries.len() <= ROOT_TEST_BINARIES_MAX,
+        "{} test binaries, at most {ROOT_TEST_BINARIES_MAX}: {binaries:?}",
+        binaries.len()
+    );
+}
+
+/// The container health check stays a small client of a kept crate (reqwest), not an HTTP
+/// implementation of its own.
+#[test]
+fn the_health_check_is_at_most_150_lines() {
+    let path = Path::new(ROOT).join("src/cli/healthcheck.rs");
+    let lines = std::fs::read_to_string(&path)
+        .expect("src/cli/healthcheck.rs")
+        .lines()
+        .count();
+    assert!(lines <= 150, "{} has {lines} lines", path.display());
+}
+
+#[test]
+fn every_crate_has_a_readme() {
+    let crates = std::fs::read_dir(Path::new(ROOT).join("crates")).expect("crates/");
+    let missing: Vec<String> = crates
+        .map(|entry| entry.expect("a crate").path())
+        .filter(|krate| !krate.join("README.md").is_file())
+        .map(|krate| krate.display().to_string())
+        .collect();
+    assert!(missing.is_empty(), "crates without a README: {missing:?}");
+}
+
+/// The library crates, as Rust paths name them.
+const LIBRARY_CRATES: [&str; 7] = [
+    "qrpose_core",
+    "qrpose_detect",
+    "qrpose_site",
+    "qrpose_track",
+    "qrpose_calib",
+    "qrpose_sim",
+    "jpeg_overlay",
+];
+
+/// Where `text` names one of `paths` (or a library crate) as a Rust path.
+fn named_paths(text: &str, paths: &[&str]) -> Vec<String> {
+    let mut named: Vec<String> = paths
+        .iter()
+        .filter(|path| text.contains(*path))
+        .map(|path| (*path).to_owned())
+        .collect();
+    for krate in LIBRARY_CRATES {
+        let forms = [
+            format!("{krate}::"),
+            format!("use {krate}"),
+            format!("{krate} as"),
+        ];
+        if forms.iter().any(|form| text.contains(form.as_str())) {
+            named.push(krate.to_owned());
+        }
+    }
+    named
+}
+
+#[test]
+fn the_path_check_finds_crate_paths_and_spares_metric_names() {
+    let http = ["crate::detect", "crate::estimate", "crate::geometry"];
+    assert_eq!(
+        named_paths("use qrpose_site::Site;", &http),
+        ["qrpose_site"]
+    );
+    assert_eq!(
+        named_paths("crate::detect::cancel::CancelFlag", &http),
+        ["crate::detect"]
+    );
+    assert!(named_paths("\"qrpose_site_reloads_total\" crate::app::Site", &http).is_empty());
+}
+
+/// The service edge reaches the crates only through the application layer, and the
+/// application layer knows nothing of the server's settings.
+#[test]
+fn http_reaches_the_crates_only_through_the_application_layer() {
+    let mut files = Vec::new();
+    rust_files(&Path::new(ROOT).join("src/http"), &mut files);
+    assert!(files.len() > 20, "{} files", files.len());
+    let http = ["crate::detect", "crate::estimate", "crate::geometry"];
+    let found: Vec<String> = files
+        .iter()
+        .flat_map(|file| {
+            let text = std::fs::read_to_string(file).expect("utf-8");
+            named_paths(&text, &http)
+                .into_iter()
+                .map(move |path| format!("{}: {path}", file.display()))
+        })
+        .collect();
+    assert!(found.is_empty(), "name these through crate::app: {found:?}");
+    let mut app = Vec::new();
+    rust_files(&Path::new(ROOT).join("src/app"), &mut app);
+    let config: Vec<String> = app
+        .iter()
+        .filter(|file| {
+            std::fs::read_to_string(file)
+                .expect("utf-8")
+                .contains("crate::config")
+        })
+        .map(|file| file.display().to_string())
+        .collect();
+    assert!(
+        config.is_empty(),
+        "the application layer names config: {config:?}"
     );
 }

@@ -4,7 +4,7 @@
 
 use nalgebra::Vector3;
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
-use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
+use qrpose_sim::render::{EcLevel, Effects, Encoding, Scene, render};
 
 /// The frames measured: name, width px, height px, focal length px.
 pub const FRAMES: [(&str, u32, u32, f64); 2] = [

@@ -21,7 +21,6 @@ pub mod problem;
 pub mod refusal;
 pub mod request;
 pub mod response;
-pub mod shape;
 pub mod site;
 pub mod stream;
 

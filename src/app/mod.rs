@@ -29,6 +29,16 @@ mod prior;
 mod setup;
 mod track;
 
+// What the wire layers name of the crates below: `crate::http` reaches them only through
+// this layer (tests/structure.rs keeps the rule).
+pub use qrpose_core::estimate::Method;
+pub use qrpose_core::geometry::distortion::DistortionModel;
+pub use qrpose_detect::Backend;
+pub use qrpose_detect::cancel::CancelFlag;
+pub use qrpose_detect::contain::contain;
+pub use qrpose_detect::decode::{DecodeLimits, admission_pixels};
+pub use qrpose_site::{Site, SiteError};
+
 pub use calibrate::{
     CalibrateAnswer, CalibrateError, CalibrateSetup, MAX_PHOTOS, MIN_PHOTOS, PhotoReport,
     calibrate_photos,

@@ -94,25 +94,6 @@ pub struct ImageLimits {
     pub max_detect: Duration,
 }
 
-/// The service's defaults (`qrpose serve` without flags), also the command line's limits.
-impl Default for ImageLimits {
-    fn default() -> Self {
-        Self::from(&crate::config::Settings::default())
-    }
-}
-
-impl From<&crate::config::Settings> for ImageLimits {
-    fn from(settings: &crate::config::Settings) -> Self {
-        Self {
-            decode: DecodeLimits {
-                max_encoded_bytes: settings.body_limit_bytes,
-                max_pixels: settings.max_image_pixels,
-            },
-            max_detect: settings.max_detect,
-        }
-    }
-}
-
 /// How an image request looks for codes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectSetup {

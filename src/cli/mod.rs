@@ -9,9 +9,7 @@ mod calibrate;
 mod estimate;
 mod healthcheck;
 mod openapi;
-mod render;
 mod serve;
-mod simulate;
 mod site;
 mod track;
 
@@ -46,8 +44,6 @@ pub enum Command {
     /// `POST /v1/calibrate` returns; `--out FILE.yaml` writes the OpenCV file a site file
     /// reads.
     Calibrate(calibrate::CalibrateArgs),
-    /// Reproduce the paper's simulation (Table 10, Figures 8-12, Tables 5-9).
-    Simulate(simulate::SimulateArgs),
     /// Run the HTTP service (docs/service.md) until SIGTERM or SIGINT.
     Serve(qrpose::config::ServeArgs),
     /// Print the OpenAPI document (what `openapi/openapi.json` holds).
@@ -57,9 +53,6 @@ pub enum Command {
     Asyncapi(openapi::OpenapiArgs),
     /// Exit 0 when the service's /healthz answers 200 (for container health checks).
     Healthcheck(healthcheck::HealthcheckArgs),
-    /// Render a synthetic photo of a QR code at a given pose, or a video of a camera moving
-    /// past codes (--sequence); prints its ground truth.
-    Render(render::RenderArgs),
     /// Site files (docs/site.md): `qrpose site check FILE` validates one and prints what it
     /// resolves to.
     Site(site::SiteArgs),
@@ -115,15 +108,10 @@ pub fn run(cli: Cli) -> ExitCode {
     match cli.command {
         Command::Estimate(args) => estimate::run(&args),
         Command::Calibrate(args) => calibrate::run(&args),
-        Command::Simulate(args) => simulate::run(&args).unwrap_or_else(|e| {
-            eprintln!("qrpose simulate: {e:#}");
-            ExitCode::FAILURE
-        }),
         Command::Serve(args) => serve::run(args),
         Command::Openapi(args) => openapi::run(&args),
         Command::Asyncapi(args) => openapi::run_asyncapi(&args),
         Command::Healthcheck(args) => healthcheck::run(&args),
-        Command::Render(args) => render::run(&args),
         Command::Site(args) => site::run(&args),
         Command::Track(args) => track::run(&args),
         Command::Auth(args) => auth::run(&args),

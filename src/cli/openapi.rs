@@ -1,9 +1,10 @@
-//! `qrpose openapi [--site]`: prints the OpenAPI document of a server without a site (what
-//! `openapi/openapi.json` holds) or with one (`openapi/openapi-site.json`); `qrpose asyncapi
-//! [--site]` the AsyncAPI document of its stream (`openapi/asyncapi.json`).
+//! `qrpose openapi [--site] [--auth]`: prints the OpenAPI document of a server without a
+//! site (what `openapi/openapi.json` holds) or with one (`openapi/openapi-site.json`), with
+//! an auth file or without (the committed ones); `qrpose asyncapi [--site] [--auth]` the
+//! AsyncAPI document of its stream (`openapi/asyncapi.json`).
 
 use clap::Args;
-use qrpose::detect::Backend;
+use qrpose::app::Backend;
 use qrpose::http::openapi::{Served, openapi_json};
 use std::process::ExitCode;
 
@@ -14,6 +15,10 @@ pub struct OpenapiArgs {
     /// marker sizes optional.
     #[arg(long)]
     pub site: bool,
+    /// The document of a server with an auth file (`qrpose serve --auth-file`): the bearer
+    /// scheme, each protected operation's scope, 401 and 403.
+    #[arg(long)]
+    pub auth: bool,
 }
 
 /// Runs `asyncapi`: the stream's AsyncAPI document of this build.
@@ -21,6 +26,7 @@ pub fn run_asyncapi(args: &OpenapiArgs) -> ExitCode {
     let served = Served {
         site: args.site,
         zxing_cpp: Backend::ZxingCpp.is_built(),
+        auth: args.auth,
     };
     match qrpose::http::openapi::asyncapi::asyncapi_json(served) {
         Ok(json) => {
@@ -39,6 +45,7 @@ pub fn run(args: &OpenapiArgs) -> ExitCode {
     let served = Served {
         site: args.site,
         zxing_cpp: Backend::ZxingCpp.is_built(),
+        auth: args.auth,
     };
     match openapi_json(served) {
         Ok(json) => {

@@ -13,6 +13,7 @@ mod stream;
 pub use security::{SecurityArgs, SecuritySettings, TlsFiles};
 pub use stream::{StreamArgs, StreamSettings};
 
+use crate::app::{DecodeLimits, ImageLimits};
 use clap::{Args, ValueEnum};
 use std::net::SocketAddr;
 use std::num::NonZeroUsize;
@@ -447,6 +448,25 @@ impl Settings {
             None => default_inflight_pixels(self.max_concurrent_estimations, self.max_image_pixels),
         };
         Ok(self)
+    }
+}
+
+/// The service's defaults (`qrpose serve` without flags), also the command line's limits.
+impl Default for ImageLimits {
+    fn default() -> Self {
+        Self::from(&Settings::default())
+    }
+}
+
+impl From<&Settings> for ImageLimits {
+    fn from(settings: &Settings) -> Self {
+        Self {
+            decode: DecodeLimits {
+                max_encoded_bytes: settings.body_limit_bytes,
+                max_pixels: settings.max_image_pixels,
+            },
+            max_detect: settings.max_detect,
+        }
     }
 }
 

@@ -9,8 +9,7 @@
 
 use super::error::ApiError;
 use super::state::AppState;
-use crate::api::problem::{ErrorCode, Problem};
-use crate::api::shape::{self, ShapeError, ShapeErrorKind};
+use crate::api::problem::{ErrorCode, Problem, ShapeKind};
 use axum::body::{Body, Bytes, HttpBody};
 use axum::extract::{FromRequest, Request};
 use axum::http::{HeaderMap, header};
@@ -186,10 +185,8 @@ async fn read_limited(
     Ok(Bytes::from(buf))
 }
 
-/// Parses a query string (without the `?`; `None` is an empty one) into `T`.
-///
-/// The pairs are read as serde_urlencoded reads them, by [`shape::query`], whose typed
-/// [`ShapeError`] decides the code and names the parameter (never the message's text).
+/// Parses a query string (without the `?`; `None` is an empty one) into `T`, as
+/// serde_urlencoded reads it.
 ///
 /// # Errors
 /// 422 `unknown_field` for a parameter `T` does not have and `unknown_variant` for a value
@@ -197,30 +194,32 @@ async fn read_limited(
 /// `malformed_query` for a value that does not parse as its type, a parameter given twice or
 /// missing. `field` names the parameter.
 pub fn parse_query<T: DeserializeOwned>(query: Option<&str>) -> Result<T, ApiError> {
-    shape::query::from_query(query.unwrap_or_default())
-        .map_err(|e| ApiError::from(query_problem(e.path(), e.inner())))
+    let pairs = form_urlencoded::parse(query.unwrap_or_default().as_bytes());
+    serde_path_to_error::deserialize(serde_urlencoded::Deserializer::new(pairs))
+        .map_err(|e| ApiError::from(query_problem(e.path(), &e.inner().to_string())))
 }
 
-/// The problem of a query refused with `err` at `path` (the parameter whose value failed;
-/// empty when `err` names the parameter itself: a missing, unknown or duplicate one).
-fn query_problem(path: &serde_path_to_error::Path, err: &ShapeError) -> Problem {
-    let code = match err.kind() {
-        ShapeErrorKind::UnknownField { .. } => ErrorCode::UnknownField,
-        ShapeErrorKind::UnknownVariant { .. } => ErrorCode::UnknownVariant,
+/// The problem of a query refused with serde's `message` at `path` (the parameter whose
+/// value failed; empty when the message names the parameter itself: a missing, unknown or
+/// duplicate one).
+fn query_problem(path: &serde_path_to_error::Path, message: &str) -> Problem {
+    let kind = ShapeKind::of(message);
+    let code = match kind {
+        ShapeKind::UnknownField(_) => ErrorCode::UnknownField,
+        ShapeKind::UnknownVariant => ErrorCode::UnknownVariant,
         _ => ErrorCode::MalformedQuery,
     };
     let path = path.to_string();
-    let field = match err.kind().field() {
+    let field = match kind.field() {
         Some(name) => Some(name.to_owned()),
         None if path.is_empty() || path == "." => None,
         None => Some(path),
     };
-    let message = err.to_string();
     let detail = match &field {
         Some(name) if !message.contains(name.as_str()) => {
             format!("query parameter {name}: {message}")
         }
-        _ => message,
+        _ => message.to_owned(),
     };
     let problem = Problem::new(code, detail);
     match field {

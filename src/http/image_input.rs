@@ -24,11 +24,11 @@ use crate::api::{
     image::{ImageQuery, merge::request_of_parts},
     problem::{ErrorCode, Problem},
 };
+use crate::app::Site;
 use crate::app::{ImageLimits, ImageSetup};
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Multipart, Request, multipart::MultipartError};
 use axum::http::StatusCode;
-use qrpose_site::Site;
 use std::sync::Arc;
 
 /// The raw-body media type of a JPEG.
@@ -103,9 +103,9 @@ impl ImageInput {
     }
 
     /// What this image weighs against the pixel budget of the estimation queue
-    /// ([`crate::detect::decode::admission_pixels`]: its declared size, WebP twice).
+    /// ([`crate::app::admission_pixels`]: its declared size, WebP twice).
     pub fn admission_pixels(&self, max_pixels: u64) -> u64 {
-        crate::detect::decode::admission_pixels(self.image(), max_pixels)
+        crate::app::admission_pixels(self.image(), max_pixels)
     }
 }
 

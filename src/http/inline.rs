@@ -9,7 +9,7 @@ use super::error::ApiError;
 use super::queue::EstimationQueue;
 use crate::api::problem::parse_json;
 use crate::api::request::CornersRequest;
-use crate::detect::contain::contain;
+use crate::app::contain;
 
 /// Bodies up to this size may be parsed on the async thread (a few µs); larger ones, which
 /// only padding or a long unknown field can make, are parsed on an estimation worker.

@@ -3,8 +3,8 @@
 use super::auth::AuthStore;
 use super::metrics::Metrics;
 use super::queue::EstimationQueue;
+use crate::app::{Site, SiteError};
 use crate::config::Settings;
-use qrpose_site::{Site, SiteError};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError, RwLock};

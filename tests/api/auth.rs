@@ -113,6 +113,7 @@ fn routes() -> Vec<(Method, String)> {
     let served = Served {
         site: true,
         zxing_cpp: false,
+        auth: true,
     };
     let doc: Value = serde_json::from_str(&openapi_json(served).expect("renders")).expect("JSON");
     let mut routes = vec![(Method::GET, "/v1/stream".to_owned())];
@@ -420,4 +421,35 @@ async fn readyz_warns_about_an_open_service_on_the_network() {
     let loopback = spawn_app_with(Settings::default()).await;
     let body: Value = loopback.get("/readyz").await.json().await.expect("JSON");
     assert!(body.get("warnings").is_none(), "{body}");
+}
+
+/// The served documents describe the running server: the bearer scheme and the scopes only
+/// when it has an auth file.
+#[tokio::test]
+async fn the_documents_ask_for_a_token_only_when_the_server_has_an_auth_file() {
+    let tokens = Tokens::new();
+    let (guarded, _) = app_with_auth("documents.yaml", &tokens).await;
+    let open = spawn_app_with(Settings::default()).await;
+    for (app, auth) in [(&guarded, true), (&open, false)] {
+        for path in ["/openapi.json", "/asyncapi.json"] {
+            let document: Value = app.get(path).await.json().await.expect("JSON");
+            let text = document.to_string();
+            assert_eq!(
+                text.contains("securitySchemes"),
+                auth,
+                "{path}, auth {auth}"
+            );
+            assert_eq!(text.contains("\"security\""), auth, "{path}, auth {auth}");
+        }
+    }
+    let document: Value = guarded
+        .get("/openapi.json")
+        .await
+        .json()
+        .await
+        .expect("JSON");
+    assert_eq!(
+        document["paths"]["/v1/pose/corners"]["post"]["security"],
+        serde_json::json!([{"bearer": ["pose"]}])
+    );
 }

@@ -4,7 +4,7 @@ use qrpose::api::problem::{ErrorCode, Problem};
 use qrpose::config::{LogFormat, Settings};
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
 use qrpose::http::{self, AppState};
-use qrpose::render::{EcLevel, Effects, Encoding, Rendered, Scene, render};
+use qrpose_sim::render::{EcLevel, Effects, Encoding, Rendered, Scene, render};
 use reqwest::{Response, StatusCode, header};
 use serde_json::{Value, json};
 use std::future::Future;
@@ -55,6 +55,8 @@ pub async fn spawn_app_with(settings: Settings) -> TestApp {
         state.clone(),
         shutdown.clone().cancelled_owned(),
     ));
+    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
+    let _ = rustls::crypto::ring::default_provider().install_default();
     let client = reqwest::Client::builder()
         .no_proxy()
         .build()

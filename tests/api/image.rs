@@ -12,7 +12,7 @@ use qrpose::api::problem::ErrorCode;
 use qrpose::config::Settings;
 use qrpose::detect::Backend;
 use qrpose::estimate::Method;
-use qrpose::render::{Encoding, Rendered};
+use qrpose_sim::render::{Encoding, Rendered};
 use reqwest::{Response, StatusCode, header};
 use serde_json::json;
 
@@ -119,7 +119,7 @@ async fn a_multipart_form_gives_the_same_answer_as_the_raw_body() {
     assert_eq!(a.rotation, b.rotation);
 }
 
-/// Issue 23: query parameters come with a multipart body too (as a generated client sends
+/// Query parameters come with a multipart body too (as a generated client sends
 /// them): merged under the `request` part, the part's fields winning.
 #[tokio::test]
 async fn a_multipart_form_takes_query_parameters_under_its_part() {
@@ -217,7 +217,7 @@ async fn an_image_without_a_code_is_a_200_with_no_markers() {
     let app = spawn_app().await;
     let blank =
         qrpose::detect::decode::GrayImage::new(320, 240, vec![180; 320 * 240]).expect("a size");
-    let jpeg = qrpose::render::encode(&blank, Encoding::Jpeg(90)).expect("encodes");
+    let jpeg = qrpose_sim::render::encode(&blank, Encoding::Jpeg(90)).expect("encodes");
 
     // Act
     let response = app.post_image(PHOTO_QUERY, jpeg, Some("image/jpeg")).await;
@@ -331,7 +331,7 @@ async fn a_code_whose_pose_cannot_be_computed_carries_its_own_problem() {
 async fn metrics_count_codes_per_image_and_each_markers_estimate() {
     // Arrange
     let app = spawn_app().await;
-    let blank = qrpose::render::encode(
+    let blank = qrpose_sim::render::encode(
         &qrpose::detect::decode::GrayImage::new(64, 48, vec![200; 64 * 48]).expect("a size"),
         Encoding::Jpeg(90),
     )

@@ -491,7 +491,7 @@ fn catalogue() -> Vec<Case> {
             UnknownVariant,
             Some("/detector"),
         ),
-        // Issue 23: query parameters with a multipart body are merged under the part; a
+        // Query parameters with a multipart body are merged under the part; a
         // refused value that came from the query is named by its parameter.
         Case {
             query: "fx_px=-5&fy_px=1000&cx_px=639.5&cy_px=359.5".to_owned(),

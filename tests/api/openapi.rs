@@ -16,6 +16,7 @@ fn committed(site: bool) -> Served {
     Served {
         site,
         zxing_cpp: false,
+        auth: false,
     }
 }
 
@@ -24,6 +25,7 @@ fn this_build() -> String {
     let served = Served {
         site: false,
         zxing_cpp: Backend::ZxingCpp.is_built(),
+        auth: false,
     };
     openapi_json(served).expect("a document")
 }
@@ -213,6 +215,7 @@ async fn a_server_with_a_site_serves_the_site_document() {
     let expected = openapi_json(Served {
         site: true,
         zxing_cpp: Backend::ZxingCpp.is_built(),
+        auth: false,
     })
     .expect("a document");
     assert!(served == expected, "GET /openapi.json with a site differs");
@@ -300,6 +303,7 @@ async fn the_asyncapi_document_is_committed_printed_and_served() {
     let this_build = qrpose::http::openapi::asyncapi::asyncapi_json(Served {
         site: false,
         zxing_cpp: Backend::ZxingCpp.is_built(),
+        auth: false,
     })
     .expect("a document");
 

@@ -1,5 +1,5 @@
 //! Graceful shutdown: stop accepting, finish in-flight requests, at most for the grace
-//! period. (SIGTERM and SIGINT on the real binary are exercised by `tests/curl_suite.rs`.)
+//! period. (SIGTERM and SIGINT on the real binary are exercised by `tests/service/curl_suite.rs`.)
 
 use crate::helpers::{eventually, occupy_worker, one_worker, queue_reaches, spawn_app_with};
 use qrpose::config::Settings;
@@ -29,6 +29,8 @@ async fn in_flight_requests_finish_after_shutdown_begins() {
     assert_eq!(response.status(), StatusCode::OK);
     let address = app.address.clone();
     app.stopped().await.expect("a clean stop");
+    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
+    let _ = rustls::crypto::ring::default_provider().install_default();
     let refused = reqwest::Client::builder()
         .no_proxy()
         .build()

@@ -6,7 +6,7 @@ use crate::helpers::{TestApp, assert_problem, spawn_app, spawn_app_with};
 use qrpose::api::problem::ErrorCode;
 use qrpose::config::Settings;
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
-use qrpose::render::{CodePlacement, EcLevel, Effects, Encoding, MultiScene, render_scene};
+use qrpose_sim::render::{CodePlacement, EcLevel, Effects, Encoding, MultiScene, render_scene};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};

@@ -1,12 +1,12 @@
-//! `GET /v1/stream` (issue 24): a WebSocket session of rendered video frames, answered in
+//! `GET /v1/stream`: a WebSocket session of rendered video frames, answered in
 //! order with each code's track and every live track; its refusals, limits and close codes.
 
 use crate::helpers::{PATIENCE, TestApp, spawn_app_with};
 use futures_util::{SinkExt, StreamExt};
 use qrpose::api::problem::ErrorCode;
 use qrpose::config::{Settings, StreamSettings};
-use qrpose::render::encode;
-use qrpose::render::sequence::{Sequence, builtin_sequence};
+use qrpose_sim::render::encode;
+use qrpose_sim::render::sequence::{Sequence, builtin_sequence};
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 use std::io::Write;

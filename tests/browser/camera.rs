@@ -8,7 +8,7 @@
 //! the render's truth), never let frames queue, and "Stop" must close the session (1000) and
 //! the camera. A refused stream must say why in words.
 
-use super::support::{BIN, Server, client, scratch_dir};
+use super::support::{Server, client, scratch_dir};
 use super::webdriver::{Browser, ENTER};
 use super::{
     DESKTOP, assert_axes_match, assert_fits_a_phone, axes, lock, maybe_write_screenshot, open_page,
@@ -16,7 +16,6 @@ use super::{
 };
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 /// Frames of the rendered video: Chromium loops them, and the camera stands still, so a few
@@ -45,31 +44,15 @@ const ROTATION_TOL_DEG: f64 = 8.0;
 /// site's, mm.
 const SIDE_TOL_MM: f64 = 1e-6;
 
-/// `qrpose render --sequence still --y4m`: the video file and the truth of its first frame.
+/// `qrpose-sim render --sequence still --y4m`: the video file and the truth of its first frame.
 fn still_video() -> (PathBuf, Value) {
     let dir = scratch_dir("browser-camera");
     let y4m = dir.join("still.y4m");
     let out = dir.join("still");
     let frames = FRAMES.to_string();
-    let output = Command::new(BIN)
-        .args([
-            "render",
-            "--sequence",
-            "still",
-            "--frames",
-            &frames,
-            "--y4m",
-        ])
-        .arg(&y4m)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .expect("qrpose render runs");
-    assert!(
-        output.status.success(),
-        "qrpose render --sequence: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    let flags = ["--sequence", "still", "--frames", &frames, "--y4m"].map(std::ffi::OsStr::new);
+    let paths = [y4m.as_os_str(), "--out".as_ref(), out.as_os_str()];
+    super::support::render(&[&flags[..], &paths[..]].concat());
     let truth = std::fs::read_to_string(out.join("truth.jsonl")).expect("truth.jsonl");
     let first = truth.lines().next().expect("a frame's truth");
     (y4m, serde_json::from_str(first).expect("JSON"))

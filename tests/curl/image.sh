@@ -3,7 +3,7 @@
 # Usage: BASE_URL=http://127.0.0.1:8080 IMAGE_PATH=code.jpg tests/curl/image.sh
 #        (or tests/curl/image.sh BASE_URL IMAGE_PATH)
 # The photo must show a 50 mm code to a 1280x720 camera with f = 1000 px, such as
-#   qrpose render --out code.jpg --payload SKU-1 --marker-size-mm 50 --z-mm 400 --alpha-deg 20
+#   qrpose-sim render --out code.jpg --payload SKU-1 --marker-size-mm 50 --z-mm 400 --alpha-deg 20
 # (the curl suite renders one that way before it runs the scripts).
 set -euo pipefail
 source "$(dirname "$0")/lib/check.sh"

@@ -8,7 +8,7 @@ use nalgebra::{Rotation3, Unit, Vector3};
 use qrpose::geometry::camera::{Camera, Distortion, DistortionModel};
 use qrpose::geometry::frames::PixelPoint;
 use qrpose::geometry::marker::Marker;
-use qrpose::render::{EcLevel, Effects, Encoding, Scene, render};
+use qrpose_sim::render::{EcLevel, Effects, Encoding, Scene, render};
 use std::path::{Path, PathBuf};
 
 /// Width and height of the photos, px.

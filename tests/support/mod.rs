@@ -1,6 +1,6 @@
 //! Shared by the tests that run the real binary (`annotated`, `browser`, `memory_budget`,
 //! `curl_suite`, `fd_exhaustion`): `qrpose serve` on a free port, its first stdout line, and
-//! photos made by `qrpose render` with their ground truth.
+//! photos made by `qrpose-sim render` (in this process) with their ground truth.
 
 #![allow(dead_code)]
 
@@ -100,30 +100,40 @@ pub const MARKER_SIZE_MM: f64 = 50.0;
 /// The payload of every rendered photo.
 pub const PAYLOAD: &str = "SKU-1";
 
-/// Renders `out` (under `dir`) with `qrpose render` and these pose flags; returns its path
-/// and the ground truth it printed.
+/// `qrpose-sim render` with `args`, in this process: the ground truth it prints.
+pub fn render(args: &[&std::ffi::OsStr]) -> Value {
+    qrpose_sim::cli::render(args).unwrap_or_else(|e| panic!("qrpose-sim render {args:?}: {e}"))
+}
+
+/// Renders `out` (under `dir`) with `qrpose-sim render` and these pose flags; returns its
+/// path and the ground truth it printed.
 pub fn render_photo(dir: &Path, out: &str, pose_args: &[&str]) -> (PathBuf, Value) {
     let path = dir.join(out);
-    let output = Command::new(BIN)
-        .arg("render")
-        .arg("--out")
-        .arg(&path)
-        .args(["--payload", PAYLOAD, "--marker-size-mm", "50"])
-        .args(["--blur-px", "0.6", "--noise", "1.5", "--seed", "5"])
-        .args(pose_args)
-        .output()
-        .expect("qrpose render runs");
-    assert!(
-        output.status.success(),
-        "qrpose render: {}",
-        String::from_utf8_lossy(&output.stderr)
+    let mut args = vec!["--out".as_ref(), path.as_os_str()];
+    let fixed = [
+        "--payload",
+        PAYLOAD,
+        "--marker-size-mm",
+        "50",
+        "--blur-px",
+        "0.6",
+    ];
+    let effects = ["--noise", "1.5", "--seed", "5"];
+    args.extend(
+        fixed
+            .iter()
+            .chain(&effects)
+            .chain(pose_args)
+            .map(std::ffi::OsStr::new),
     );
-    let truth = serde_json::from_slice(&output.stdout).expect("render prints JSON");
+    let truth = render(&args);
     (path, truth)
 }
 
 /// A blocking client that never uses a proxy.
 pub fn client() -> reqwest::blocking::Client {
+    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
+    let _ = rustls::crypto::ring::default_provider().install_default();
     reqwest::blocking::Client::builder()
         .no_proxy()
         .timeout(Duration::from_secs(60))

@@ -3,7 +3,7 @@
 //! benchmark's effects (blur σ, noise, JPEG quality), and decoded as the service decodes it.
 
 use qrpose::detect::decode::{DecodeLimits, GrayImage, decode_gray};
-use qrpose::render::{
+use qrpose_sim::render::{
     Effects, Encoding, MultiScene, RenderedScene, SceneRanges, random_scene, render_scene,
 };
 

@@ -1,4 +1,4 @@
-//! Rendered calibration photos with known truth (issue 25's comparison,
+//! Rendered calibration photos with known truth (the calibration comparison's,
 //! `scripts/calibration_compare.py`): 15 views of one printed 120 mm QR code (version 4)
 //! and, from the very same 15 poses, a printed checkerboard of the same outer size
 //! (10 × 10 squares of 12 mm, 81 inner corners, a light border as wide as the code's quiet

@@ -4,7 +4,7 @@
 //! a 120 mm version-4 code seen by a camera with an off-centre principal point and barrel
 //! distortion, head-on and tilted up to 40°, in the middle of the frame and near its
 //! corners; clean renders, and renders with the blur, noise, lighting, clutter and JPEG of
-//! issue 25's measurement (`examples/calibration_photos.rs`).
+//! the calibration comparison's measurement (`examples/calibration_photos.rs`).
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use qrpose_core::geometry::camera::{Camera, Distortion, DistortionModel};
@@ -15,7 +15,7 @@ use qrpose_detect::refine::{TargetPoint, TargetPointKind, calibration_points, co
 use qrpose_detect::{DetectorChoice, detect_codes};
 use qrpose_sim::render::{EcLevel, Effects, Encoding, Rendered, Scene, render};
 
-/// The camera of issue 25's measurement: off-centre principal point, barrel distortion.
+/// The camera of the calibration comparison's measurement: off-centre principal point, barrel distortion.
 fn barrel_camera() -> Camera {
     Camera::from_pixels(1000.0, 1005.0, 650.0, 350.0)
         .expect("valid intrinsics")
@@ -173,7 +173,7 @@ fn clean_renders_give_hundreds_of_points_within_a_twentieth_of_a_pixel() {
     check(&effects, [0.03, 0.08, 0.15], 0.01);
 }
 
-/// Renders as issue 25's measurement takes them: 4 × 4 samples a pixel, blur σ 0.8 px,
+/// Renders as the calibration comparison's measurement takes them: 4 × 4 samples a pixel, blur σ 0.8 px,
 /// noise, uneven light, clutter, JPEG 90. The hardest view (0.65 m, tilted 40°: 3.5 px per
 /// module along one side, the grid sheared by 50°) has a median error of 0.055 px, a 95th
 /// percentile of 0.17 px.

@@ -1,4 +1,4 @@
-//! Pose from a rendered fisheye photo against the pinhole photo of the same scene (issue 14):
+//! Pose from a rendered fisheye photo against the pinhole photo of the same scene:
 //! the same codes at the same poses, seen once through OpenCV's fisheye model (`equidistant`)
 //! and once through a distortion-free lens of the same focal length, each run through the
 //! photo pipeline (`locate_markers`) with its own camera.
@@ -48,7 +48,7 @@ const CODES: [(f64, f64, f64, [f64; 3]); 5] = [
 const EXACT_CORNERS_TOL: (f64, f64) = (1e-6, 1e-6);
 /// The pinhole photos' pose error, as measured with margin: mm, degrees.
 const PINHOLE_TOL: (f64, f64) = (0.1, 0.3);
-/// How much worse than the pinhole photo the fisheye photo may be (issue 14): the factor on
+/// How much worse than the pinhole photo the fisheye photo may be: the factor on
 /// the pinhole tolerance.
 const FISHEYE_OVER_PINHOLE: f64 = 2.0;
 /// The fisheye photos' pose error, refined through the lens, as measured with margin: mm,
@@ -224,7 +224,7 @@ fn a_camera_without_distortion_keeps_the_corners_of_the_detector_without_a_camer
     }
 }
 
-/// Issue 14: pose from a rendered fisheye photo within the same accuracy as a pinhole one.
+/// Pose from a rendered fisheye photo within the same accuracy as a pinhole one.
 #[test]
 fn fisheye_photos_are_posed_as_accurately_as_pinhole_photos_of_the_same_scene() {
     let tol = (

@@ -39,7 +39,6 @@ pub use auth::{ANONYMOUS_CLIENT, AuthMetrics, AuthOutcome, TlsRefusal};
 pub use stream::StreamMetrics;
 
 use crate::api::response::PoseResponse;
-use crate::estimate;
 use axum::http::{Method, StatusCode};
 use prometheus_client::encoding::EncodeLabelSet;
 use prometheus_client::metrics::{
@@ -55,7 +54,7 @@ use std::time::Duration;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PoseOutcome {
     /// The method that produced it.
-    pub method: estimate::Method,
+    pub method: crate::app::Method,
     /// Iterations run.
     pub iterations: u32,
     /// Whether the method converged.
@@ -433,12 +432,12 @@ mod tests {
             Duration::from_micros(300),
         );
         metrics.observe_estimate(PoseOutcome {
-            method: estimate::Method::Paper,
+            method: crate::app::Method::Paper,
             iterations: 30,
             converged: false,
         });
         metrics.observe_estimate(PoseOutcome {
-            method: estimate::Method::Reprojection,
+            method: crate::app::Method::Reprojection,
             iterations: 4,
             converged: true,
         });

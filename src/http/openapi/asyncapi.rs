@@ -171,7 +171,9 @@ pub fn asyncapi_json(served: Served) -> Result<String, serde_json::Error> {
         },
         "components": {"messages": messages, "schemas": schemas},
     });
-    super::security::declare_asyncapi_security(&mut doc);
+    if served.auth {
+        super::security::declare_asyncapi_security(&mut doc);
+    }
     serde_json::to_string_pretty(&doc).map(|json| json + "\n")
 }
 

@@ -27,7 +27,7 @@ pub use requests::Served;
 use super::error::ApiError;
 use super::routes::{annotated, calibrate, corners, health, image, metrics, page, site};
 use super::state::AppState;
-use crate::detect::Backend;
+use crate::app::Backend;
 use axum::body::Bytes;
 use axum::extract::State;
 use axum::http::header;
@@ -41,9 +41,8 @@ pub const OPENAPI_PATH: &str = "/openapi.json";
 
 /// The document of `served`, rendered on first use.
 fn rendered(served: Served) -> &'static Result<Bytes, String> {
-    static DOCUMENTS: [OnceLock<Result<Bytes, String>>; 4] = [const { OnceLock::new() }; 4];
-    let slot = usize::from(served.site) * 2 + usize::from(served.zxing_cpp);
-    DOCUMENTS[slot].get_or_init(|| {
+    static DOCUMENTS: [OnceLock<Result<Bytes, String>>; 8] = [const { OnceLock::new() }; 8];
+    DOCUMENTS[served.slot()].get_or_init(|| {
         openapi_json(served)
             .map(Bytes::from)
             .map_err(|e| e.to_string())
@@ -60,7 +59,13 @@ impl Served {
         Self {
             site: state.site.path().is_some(),
             zxing_cpp: Backend::ZxingCpp.is_built(),
+            auth: state.auth.is_on(),
         }
+    }
+
+    /// This configuration's place among the eight.
+    fn slot(self) -> usize {
+        usize::from(self.site) * 4 + usize::from(self.zxing_cpp) * 2 + usize::from(self.auth)
     }
 }
 
@@ -126,7 +131,9 @@ pub fn openapi_json(served: Served) -> Result<String, serde_json::Error> {
     forms::document_forms(&mut doc);
     requests::write_alternatives(&mut doc, served);
     query::parameters_as_served(&mut doc, served);
-    security::declare_security(&mut doc);
+    if served.auth {
+        security::declare_security(&mut doc);
+    }
     serde_json::to_string_pretty(&doc).map(|json| json + "\n")
 }
 
@@ -157,10 +164,16 @@ mod tests {
     fn each_configuration_is_rendered_once_as_it_is_rendered() {
         for site in [false, true] {
             for zxing_cpp in [false, true] {
-                let served = Served { site, zxing_cpp };
-                let cached = rendered(served).as_ref().expect("renders");
-                let fresh = openapi_json(served).expect("renders");
-                assert_eq!(cached.as_ref(), fresh.as_bytes(), "{served:?}");
+                for auth in [false, true] {
+                    let served = Served {
+                        site,
+                        zxing_cpp,
+                        auth,
+                    };
+                    let cached = rendered(served).as_ref().expect("renders");
+                    let fresh = openapi_json(served).expect("renders");
+                    assert_eq!(cached.as_ref(), fresh.as_bytes(), "{served:?}");
+                }
             }
         }
     }
@@ -168,9 +181,8 @@ mod tests {
 
 /// The stream's messages, rendered once per configuration.
 fn rendered_asyncapi(served: Served) -> &'static Result<Bytes, String> {
-    static DOCUMENTS: [OnceLock<Result<Bytes, String>>; 4] = [const { OnceLock::new() }; 4];
-    let slot = usize::from(served.site) * 2 + usize::from(served.zxing_cpp);
-    DOCUMENTS[slot].get_or_init(|| {
+    static DOCUMENTS: [OnceLock<Result<Bytes, String>>; 8] = [const { OnceLock::new() }; 8];
+    DOCUMENTS[served.slot()].get_or_init(|| {
         asyncapi::asyncapi_json(served)
             .map(Bytes::from)
             .map_err(|e| e.to_string())

@@ -34,8 +34,7 @@
 use super::variants::{Variant, non_null, reference, split};
 use crate::api::image::PointsDto;
 use crate::api::request::MethodDto;
-use crate::estimate::Method;
-use crate::geometry::distortion::DistortionModel;
+use crate::app::{DistortionModel, Method};
 use clap::ValueEnum;
 use serde_json::{Value, json};
 
@@ -46,6 +45,9 @@ pub struct Served {
     pub site: bool,
     /// The zxing-cpp detector is built in (cargo feature `zxing-cpp`).
     pub zxing_cpp: bool,
+    /// An auth file is loaded (`qrpose serve --auth-file`): the protected operations need
+    /// a bearer token. Without one every operation is open and the document asks for none.
+    pub auth: bool,
 }
 
 /// The fields of a corners request in pixels.

@@ -107,10 +107,26 @@ mod tests {
     use super::*;
     use crate::http::openapi::{Served, openapi_json};
 
+    fn document(auth: bool) -> Value {
+        let served = Served {
+            auth,
+            ..Served::default()
+        };
+        serde_json::from_str(&openapi_json(served).expect("renders")).expect("JSON")
+    }
+
+    #[test]
+    fn without_an_auth_file_no_operation_asks_for_a_token() {
+        let doc = document(false);
+        let text = doc.to_string();
+        assert!(!text.contains("\"security\""), "a security requirement");
+        assert!(!text.contains("securitySchemes"));
+        assert!(doc["paths"]["/v1/pose/image"]["post"]["responses"]["401"].is_null());
+    }
+
     #[test]
     fn protected_operations_name_their_scope_and_open_ones_none() {
-        let doc: Value =
-            serde_json::from_str(&openapi_json(Served::default()).expect("renders")).expect("JSON");
+        let doc = document(true);
         let scope = |path: &str, method: &str| doc["paths"][path][method]["security"].clone();
         assert_eq!(
             scope("/v1/pose/corners", "post"),

@@ -11,7 +11,7 @@
 //! capacity, whatever the clients do.
 //!
 //! A request that gives up while its job *runs* raises the job's cancellation flag
-//! ([`qrpose_detect::cancel`]), which the job hands to detection in its budget
+//! ([`crate::app::CancelFlag`]), which the job hands to detection in its budget
 //! ([`EstimationQueue::run_cancellable`]): detection stops before its next pass, so the worker is free
 //! within one pass (a few ms on the crops `auto` works on) rather than when every pass has
 //! run.
@@ -30,8 +30,7 @@
 
 use super::error::ApiError;
 use super::metrics::QueueMetrics;
-use crate::detect::cancel::CancelFlag;
-use crate::detect::contain::contain;
+use crate::app::{CancelFlag, contain};
 use crossbeam_channel::{Receiver, Sender};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};

@@ -101,7 +101,7 @@ async fn a_request_that_gives_up_while_its_job_runs_cancels_the_detection() {
     let queue = EstimationQueue::new(1, 0, QueueMetrics::default()).expect("threads");
     let (seen, saw) = mpsc::channel::<Duration>();
     let (running, has_run) = tokio::sync::oneshot::channel::<std::time::Instant>();
-    let job = move |cancel: crate::detect::cancel::CancelFlag| {
+    let job = move |cancel: crate::app::CancelFlag| {
         let started = std::time::Instant::now();
         let _ = running.send(started);
         // Stands for detection: a pass, then the check before the next one.

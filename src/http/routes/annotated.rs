@@ -10,8 +10,9 @@
 use crate::annotate::{CodecError, OutputFormat, annotated_image};
 use crate::api::image::{ImageQuery, ImageResponse, respond};
 use crate::api::problem::{ErrorCode, Problem};
+use crate::app::CancelFlag;
 use crate::app::ImageLimits;
-use crate::detect::cancel::CancelFlag;
+use crate::app::Site;
 use crate::http::{
     error::ApiError, image_input::ImageInput, metrics::PoseOutcome, negotiate::negotiate_format,
     routes::image::ImageForm, state::AppState,
@@ -20,7 +21,6 @@ use axum::extract::State;
 use axum::http::{HeaderMap, HeaderName, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use base64::Engine;
-use qrpose_site::Site;
 use std::sync::Arc;
 
 /// The route.

@@ -6,8 +6,8 @@
 
 use crate::api::calibrate::{CalibrateRequest, CalibrateResponse, respond};
 use crate::api::problem::{ErrorCode, Problem, parse_json};
+use crate::app::CancelFlag;
 use crate::app::ImageLimits;
-use crate::detect::cancel::CancelFlag;
 use crate::http::{
     error::ApiError,
     extract::{self, JsonBytes},
@@ -122,7 +122,7 @@ pub async fn calibrate(
     let pixels = input
         .photos
         .iter()
-        .map(|p| crate::detect::decode::admission_pixels(p, limits.decode.max_pixels))
+        .map(|p| crate::app::admission_pixels(p, limits.decode.max_pixels))
         .max()
         .unwrap_or(0);
     let json = state

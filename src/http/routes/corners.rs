@@ -6,6 +6,7 @@ use crate::api::{
     request::CornersRequest,
     response::PoseResponse,
 };
+use crate::app::Site;
 use crate::http::{
     error::ApiError,
     extract::{JsonBody, JsonBytes},
@@ -14,7 +15,6 @@ use crate::http::{
     state::AppState,
 };
 use axum::extract::State;
-use qrpose_site::Site;
 use std::sync::Arc;
 
 /// Estimate the pose of a QR code from its four corners.

@@ -7,14 +7,14 @@ use crate::api::{
     image::{ImageQuery, ImageRequest, ImageResponse, respond},
     problem::Problem,
 };
+use crate::app::CancelFlag;
 use crate::app::ImageLimits;
-use crate::detect::cancel::CancelFlag;
+use crate::app::Site;
 use crate::http::{
     error::ApiError, extract::JsonBytes, image_input::ImageInput, metrics::PoseOutcome,
     state::AppState,
 };
 use axum::extract::State;
-use qrpose_site::Site;
 use std::sync::Arc;
 use utoipa::ToSchema;
 

@@ -1,5 +1,5 @@
 //! Printed checkerboards drawn by the codes' rasteriser: the reference target of the
-//! calibration comparison (issue 25, `scripts/calibration_compare.py`: OpenCV's checkerboard
+//! calibration comparison (`scripts/calibration_compare.py`: OpenCV's checkerboard
 //! calibration on the same views as a QR code's). [`Checkerboard`] (squares per side, outer
 //! size, light border), [`BoardScene`], [`render_checkerboard`] and its truth
 //! [`BoardTruth`].

@@ -24,7 +24,7 @@ const RESTARTS: u32 = 50;
 const PAYLOAD_CHARS: &[u8] = b"0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZ";
 
 /// The ranges [`random_scene`] draws from, each `[min, max]` inclusive and uniform.
-/// `Default` is the benchmark scene of issue 12.
+/// `Default` is the multi-code benchmark's scene (`scripts/multicode_bench.py`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SceneRanges {
     /// Image width, px.

@@ -183,7 +183,7 @@ fn render_reports_the_error_of_its_one_code_unwrapped() {
 }
 
 /// A fisheye bows a far-off-axis code's sides outward past the box of its corners; the
-/// rasteriser must still draw them (issue 14).
+/// rasteriser must still draw them (fisheye lenses).
 #[test]
 fn a_fisheye_draws_the_bowed_side_of_a_code_far_off_the_axis() {
     let camera = Camera::from_pixels(420.0, 420.0, 639.5, 399.5)

@@ -1,5 +1,5 @@
 //! The sequence file ([`SequenceSpec`]): what a rendered video shows, as JSON. A camera
-//! (intrinsics and an optional lens model, as the `--scene` file of `qrpose render` writes
+//! (intrinsics and an optional lens model, as the `--scene` file of `qrpose-sim render` writes
 //! it), the image size, the frame rate and length, codes placed in a world frame, the
 //! camera's path through that frame ([`TrajectorySpec`]), an optional textured wall behind
 //! the codes ([`WallSpec`]), the image effects ([`SequenceEffects`]) and one seed.
@@ -74,7 +74,7 @@ pub fn default_fps() -> f64 {
     30.0
 }
 
-/// The camera of a sequence, as the `--scene` file of `qrpose render` writes it.
+/// The camera of a sequence, as the `--scene` file of `qrpose-sim render` writes it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSpec {
