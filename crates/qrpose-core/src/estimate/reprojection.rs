@@ -297,13 +297,8 @@ fn first_is_better(a: &refine::Refined, b: &refine::Refined, floor_rms: f64) -> 
 /// so J = [[I, 0], [−[d]×, I]] and Σ' = J Σ Jᵀ.
 fn centre_covariance(cov: &Matrix6<f64>, d: &Vector3<f64>) -> Matrix6<f64> {
     let mut j = Matrix6::identity();
-    #[rustfmt::skip]
-    let minus_skew = nalgebra::Matrix3::new(
-        0.0,  d.z,  -d.y,
-        -d.z, 0.0,  d.x,
-        d.y,  -d.x, 0.0,
-    );
-    j.fixed_view_mut::<3, 3>(3, 0).copy_from(&minus_skew);
+    j.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&(-d.cross_matrix()));
     j * cov * j.transpose()
 }
 
