@@ -11,7 +11,6 @@
 use crate::covariance::{BLOCKS_PER_SIDE, intrinsic_covariance};
 use crate::error::{CalibrationError, SolveFailure};
 use crate::fit::{self, Fit};
-use crate::homography::homography_from_points;
 use crate::input::{ImageSize, MIN_VIEWS, Options, View, validate};
 use crate::lm::{self, ViewData};
 use crate::result::{
@@ -21,6 +20,7 @@ use crate::robust::median;
 use crate::warnings::{Coverage, Evidence, warnings};
 use nalgebra::{Matrix3, Vector2};
 use qrpose_core::geometry::frames::{MarkerToCamera, PixelPoint};
+use qrpose_core::geometry::homography::fit_homography_dlt;
 
 /// A view is dropped when its median residual exceeds this multiple of the views' median
 /// (and [`DROP_FLOOR_PX`]): three times the typical view is no longer noise.
@@ -88,7 +88,7 @@ pub fn calibrate(
     let mut homographies: Vec<(usize, Matrix3<f64>)> = Vec::with_capacity(views.len());
     for (i, view) in data.iter().enumerate() {
         let pixels: Vec<_> = view.pixel_px.iter().map(|p| (*p).into()).collect();
-        match homography_from_points(&view.target_mm, &pixels) {
+        match fit_homography_dlt(&view.target_mm, &pixels).ok() {
             Some(h) => homographies.push((i, h)),
             None => dropped[i] = Some((DropReason::HomographyFailed, None)),
         }

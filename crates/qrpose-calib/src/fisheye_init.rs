@@ -20,11 +20,11 @@
 //! do not reach), and freeing the principal point in it makes it drift away.
 
 use crate::error::SolveFailure;
-use crate::homography::homography_from_points;
 use crate::input::ImageSize;
 use crate::lm::ViewData;
 use crate::zhang::{InitialIntrinsics, centred_intrinsics, intrinsics_from_homographies};
 use nalgebra::{Matrix3, Point2, Vector2};
+use qrpose_core::geometry::homography::fit_homography_dlt;
 
 /// No pixel is taken further than this off the axis (under the ideal fisheye): tan θ runs
 /// away towards 90°. When the focal lengths would put a pixel further, they are scaled up
@@ -95,7 +95,7 @@ pub(crate) fn equidistant_start(
     );
     let homographies: Option<Vec<Matrix3<f64>>> = views
         .iter()
-        .map(|v| homography_from_points(&v.target_mm, &pinhole_equivalent(&v.pixel_px, &k)))
+        .map(|v| fit_homography_dlt(&v.target_mm, &pinhole_equivalent(&v.pixel_px, &k)).ok())
         .collect();
     let start = homographies.and_then(|hs| Some((centred_intrinsics(&hs, image)?, hs)));
     Ok(match start {

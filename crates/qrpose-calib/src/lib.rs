@@ -12,7 +12,7 @@
 //!
 //! | module | owns |
 //! |---|---|
-//! | `homography` | each view's plane-to-image homography, normalised DLT (Zhang Eq. 2) |
+//! | qrpose-core's [`fit_homography_dlt`] | each view's plane-to-image homography (Zhang Eq. 2), lens ignored: a start only, `lm` refines all views at once (not Zhang's per-view ML, Appendix A) |
 //! | `zhang` | closed-form intrinsics (Eqs. 3-9, Appendix B), poses (Sec. 3.1, Appendix C), fallbacks |
 //! | `distortion_init` | the linear radial estimate (Sec. 3.3, Eq. 13) |
 //! | `fisheye_init` | the closed form iterated on pinhole-equivalent pixels for the fisheye model |
@@ -31,6 +31,7 @@
 //! closed form). Nothing here is asynchronous or does I/O.
 //!
 //! [`Camera`]: qrpose_core::geometry::camera::Camera
+//! [`fit_homography_dlt`]: qrpose_core::geometry::homography::fit_homography_dlt
 
 #![warn(missing_docs)]
 
@@ -41,7 +42,6 @@ mod distortion_init;
 mod error;
 mod fisheye_init;
 mod fit;
-mod homography;
 mod input;
 mod lens;
 mod lm;

@@ -2,7 +2,7 @@
 //!
 //! | module | owns |
 //! |---|---|
-//! | [`geometry`] | frames, camera and distortion, marker, corner quadrilaterals, Euler angles |
+//! | [`geometry`] | frames, camera and distortion, marker, corner quadrilaterals, Euler angles, homography fit |
 //! | [`estimate`] | pose from four corners: `paper`, `depth-newton`, `reprojection` |
 //!
 //! Conventions (frames, corner labels, Euler order, units) are those of the repository's

@@ -14,7 +14,7 @@
 //! inliers remain, the worst is left out and the rest fused again; with two codes that
 //! disagree both are flagged (there is no telling which is wrong) and both stay fused.
 
-use crate::transform::{PoseWithCovariance, Rigid, log_rotation, perturbation_between, skew};
+use crate::transform::{PoseWithCovariance, Rigid, log_rotation, perturbation_between};
 use nalgebra::{Matrix3, Matrix6, Rotation3, Vector3, Vector6};
 use thiserror::Error;
 
@@ -68,7 +68,7 @@ pub struct Fusion {
 /// J_r⁻¹(φ) of SO(3): I + ½[φ]× + (1/θ² − (1 + cos θ)/(2θ·sin θ))·[φ]×².
 fn right_jacobian_inverse(phi: &Vector3<f64>) -> Matrix3<f64> {
     let theta = phi.norm();
-    let k = skew(phi);
+    let k = phi.cross_matrix();
     if theta < 1e-6 {
         return Matrix3::identity() + 0.5 * k + k * k / 12.0;
     }

@@ -16,7 +16,6 @@
 //! that pose, [`covariance_at`]), the other pose as its alternative, and warnings for its
 //! own fit.
 
-use crate::transform::skew;
 use nalgebra::{Matrix6, Rotation3, SMatrix};
 use qrpose_core::estimate::{
     AMBIGUITY_PROBABILITY_THRESHOLD, HIGH_RMS_SIGMAS, PoseEstimate, Warning,
@@ -118,7 +117,7 @@ pub fn covariance_at(pose: &MarkerToCamera, obs: &Observation<'_>) -> Option<Mat
         let mut d_point = SMatrix::<f64, 3, 6>::zeros();
         d_point
             .fixed_view_mut::<3, 3>(0, 0)
-            .copy_from(&(-skew(&arm)));
+            .copy_from(&(-arm.cross_matrix()));
         d_point
             .fixed_view_mut::<3, 3>(0, 3)
             .copy_from(&nalgebra::Matrix3::identity());

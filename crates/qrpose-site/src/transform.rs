@@ -70,11 +70,6 @@ pub struct PoseWithCovariance {
     pub covariance: Option<Matrix6<f64>>,
 }
 
-/// [v]×, the cross-product matrix: [v]×·w = v × w.
-pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    v.cross_matrix()
-}
-
 fn propagate(j: &Matrix6<f64>, covariance: Option<Matrix6<f64>>) -> Option<Matrix6<f64>> {
     covariance.map(|c| {
         let p = j * c * j.transpose();
@@ -113,7 +108,7 @@ pub fn then_fixed(t: &PoseWithCovariance, b: &Rigid) -> PoseWithCovariance {
     let j = block_jacobian(
         Matrix3::identity(),
         Matrix3::zeros(),
-        -skew(&moved),
+        -moved.cross_matrix(),
         Matrix3::identity(),
     );
     PoseWithCovariance {
@@ -128,7 +123,7 @@ pub fn inverse(t: &PoseWithCovariance) -> PoseWithCovariance {
     let j = block_jacobian(
         -rt,
         Matrix3::zeros(),
-        -rt * skew(&t.pose.translation_mm),
+        -rt * t.pose.translation_mm.cross_matrix(),
         -rt,
     );
     PoseWithCovariance {

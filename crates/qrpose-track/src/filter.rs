@@ -47,7 +47,7 @@
 //! measurement's predictive likelihood (Laplace approximation), which weighs hypotheses.
 
 use crate::measurement::{Corners, PoseCandidate};
-use crate::so3::{exp, left_jacobian, log, skew};
+use crate::so3::{left_jacobian, log};
 use nalgebra::{Matrix3, Matrix6, Rotation3, SMatrix, Vector3, Vector6};
 use qrpose_core::geometry::marker::Marker;
 
@@ -135,7 +135,7 @@ impl Eskf {
             return self.clone();
         }
         let phi = self.angular_velocity_rad_s * dt_s;
-        let turn = exp(&phi);
+        let turn = Rotation3::new(phi);
         let mut rotation = turn * self.rotation;
         rotation.renormalize();
         let mut f = Cov12::identity();
@@ -172,7 +172,7 @@ impl Eskf {
     /// The state at error δ from this one: R = Exp(δθ)·R̂, c = ĉ + δc, v = v̂ + δv,
     /// ω = ω̂ + δω (covariance unchanged).
     pub fn plus(&self, d: &SMatrix<f64, 12, 1>) -> Self {
-        let mut rotation = exp(&Vector3::new(d[0], d[1], d[2])) * self.rotation;
+        let mut rotation = Rotation3::new(Vector3::new(d[0], d[1], d[2])) * self.rotation;
         rotation.renormalize();
         Self {
             rotation,
@@ -207,7 +207,7 @@ impl Eskf {
                 -corners.fy * p.y * inv_z * inv_z,
             );
             h.fixed_view_mut::<2, 3>(2 * j, 0)
-                .copy_from(&(dproj * -skew(&q)));
+                .copy_from(&(dproj * -q.cross_matrix()));
             h.fixed_view_mut::<2, 3>(2 * j, 3).copy_from(&dproj);
         }
         Some((r, h))
@@ -419,11 +419,11 @@ mod tests {
     #[test]
     fn the_iterated_update_converges_to_the_corners_from_a_distant_start() {
         let marker = Marker::try_new(50.0).expect("marker");
-        let truth_r = exp(&Vector3::new(0.4, -0.2, 0.1));
+        let truth_r = Rotation3::new(Vector3::new(0.4, -0.2, 0.1));
         let truth_c = Vector3::new(20.0, -10.0, 600.0);
         // A weak prior 4° and 8 mm off: the update must land on the corners' own pose.
         let prior = candidate(
-            exp(&Vector3::new(0.45, -0.25, 0.1)),
+            Rotation3::new(Vector3::new(0.45, -0.25, 0.1)),
             truth_c + Vector3::new(2.0, 0.0, 8.0),
             200.0,
         );

@@ -14,7 +14,7 @@
 //!
 //! | module | owns |
 //! |---|---|
-//! | [`so3`] | exponential and logarithm maps, left Jacobian |
+//! | [`so3`] | logarithm map, left Jacobian, angle between rotations |
 //! | `filter` | the error-state Kalman filter of one motion model: prediction, update |
 //! | `imm` | the three motion models (at rest, steady, manoeuvring) of one hypothesis, interacting |
 //! | `branches` | the planar-branch hypotheses of one track: choice, weights, merge, prune |

@@ -13,7 +13,7 @@
 //! `crates/qrpose-core/src/estimate/refine.rs`).
 
 use crate::params::TrackerParams;
-use crate::so3::{angle_between, skew};
+use crate::so3::angle_between;
 use nalgebra::{Matrix3, Matrix6, Rotation3, SMatrix, Vector2, Vector3};
 use qrpose_core::estimate::PoseEstimate;
 use qrpose_core::geometry::camera::{Camera, ImageUnit};
@@ -277,7 +277,8 @@ pub(crate) fn corner_jacobian(
         return None;
     }
     let mut dp = SMatrix::<f64, 3, 6>::zeros();
-    dp.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-skew(&q)));
+    dp.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(-q.cross_matrix()));
     dp.fixed_view_mut::<3, 3>(0, 3)
         .copy_from(&Matrix3::identity());
     Some(projection_jacobian(camera, &p) * dp)

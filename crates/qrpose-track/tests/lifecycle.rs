@@ -5,7 +5,6 @@ mod support;
 use nalgebra::{Rotation3, Vector3};
 use qrpose_core::estimate::estimate_pose;
 use qrpose_core::geometry::{frames::PixelPoint, marker::CornerOrder, quad::ImageQuad};
-use qrpose_track::so3::exp;
 use qrpose_track::{Measurement, Outcome, Param, TrackError, TrackStatus, Tracker, TrackerParams};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -15,7 +14,7 @@ const FRAME_MS: f64 = 1000.0 / 30.0;
 
 fn pose() -> (Rotation3<f64>, Vector3<f64>) {
     (
-        exp(&Vector3::new(0.5, 0.2, 0.1)),
+        Rotation3::new(Vector3::new(0.5, 0.2, 0.1)),
         Vector3::new(30.0, -20.0, 600.0),
     )
 }
@@ -398,7 +397,7 @@ fn the_track_settles_the_planar_ambiguity_that_single_frames_leave_open() {
     // mirror pose.
     let scene = Scene::standard();
     let mut rng = StdRng::seed_from_u64(9);
-    let r = exp(&Vector3::new(0.0, 35f64.to_radians(), 0.0));
+    let r = Rotation3::new(Vector3::new(0.0, 35f64.to_radians(), 0.0));
     let c = Vector3::new(40.0, 20.0, 1000.0);
     let mut tracker = Tracker::new(TrackerParams::default()).expect("valid");
     let (mut flagged, mut single_wrong, mut filtered_wrong) = (0, 0, 0);

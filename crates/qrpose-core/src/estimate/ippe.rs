@@ -10,11 +10,12 @@
 //! Model plane coordinates: the marker frame shifted to the centroid of the model points (for
 //! the four corners, the marker centre: P1 (l/2, l/2), P2 (l/2, −l/2), P3 (−l/2, −l/2),
 //! P4 (−l/2, l/2)), so the rotation is the marker-to-camera rotation itself. Four corners
-//! get their homography in closed form; more points (e.g. the finder patterns' corners)
-//! get it by the normalised DLT (Hartley & Zisserman, Algorithm 4.2).
+//! get their homography in closed form ([`homography_from_square`]); more points (e.g. the
+//! finder patterns' corners) get it by the normalised DLT of
+//! [`crate::geometry::homography::fit_homography_dlt`].
 
-use crate::geometry::{frames::NormalizedPoint, marker::Marker};
-use nalgebra::{DMatrix, Matrix2, Matrix3, Rotation3, SymmetricEigen, Vector2, Vector3};
+use crate::geometry::{frames::NormalizedPoint, homography::with_unit_h33, marker::Marker};
+use nalgebra::{Matrix2, Matrix3, Rotation3, Vector3};
 
 /// One candidate pose: rotation and the marker centre in the camera frame (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -72,9 +73,7 @@ pub fn homography_from_square(
         0.0,     1.0 / l, 0.5,
         0.0,     0.0,     1.0,
     );
-    let hm = h_square * model_to_square;
-    let scale = hm[(2, 2)];
-    (scale.is_finite() && scale.abs() > f64::EPSILON).then(|| hm / scale)
+    with_unit_h33(&(h_square * model_to_square))
 }
 
 /// The rotation taking the z axis onto the unit vector along `a`.
@@ -155,59 +154,6 @@ pub fn centre_for_rotation(
     super::lm::solve_spd(&ata, &atb)
 }
 
-/// Hartley's normalising similarity: centroid to the origin, mean distance √2.
-fn normalising_transform(points: &[Vector2<f64>]) -> Option<Matrix3<f64>> {
-    let n = points.len() as f64;
-    let c = points.iter().sum::<Vector2<f64>>() / n;
-    let mean_dist = points.iter().map(|p| (p - c).norm()).sum::<f64>() / n;
-    if mean_dist.is_nan() || mean_dist <= 0.0 {
-        return None;
-    }
-    let s = std::f64::consts::SQRT_2 / mean_dist;
-    #[rustfmt::skip]
-    let t = Matrix3::new(
-        s,   0.0, -s * c.x,
-        0.0, s,   -s * c.y,
-        0.0, 0.0, 1.0,
-    );
-    Some(t)
-}
-
-/// The homography from model-plane points (mm) to normalised image points by the
-/// normalised DLT, scaled so that H33 = 1. Needs at least four points; `None` when they
-/// are degenerate (collinear, coincident).
-pub fn homography_dlt(model_xy: &[Vector2<f64>], rays: &[NormalizedPoint]) -> Option<Matrix3<f64>> {
-    if model_xy.len() < 4 || model_xy.len() != rays.len() {
-        return None;
-    }
-    let image: Vec<Vector2<f64>> = rays.iter().map(|r| Vector2::new(r.x(), r.y())).collect();
-    let tm = normalising_transform(model_xy)?;
-    let ti = normalising_transform(&image)?;
-    let mut a = DMatrix::<f64>::zeros(2 * rays.len(), 9);
-    for (k, (m, i)) in model_xy.iter().zip(&image).enumerate() {
-        let m = tm * Vector3::new(m.x, m.y, 1.0);
-        let i = ti * Vector3::new(i.x, i.y, 1.0);
-        let (xm, ym, x, y) = (m.x, m.y, i.x, i.y);
-        let rows = [
-            [xm, ym, 1.0, 0.0, 0.0, 0.0, -x * xm, -x * ym, -x],
-            [0.0, 0.0, 0.0, xm, ym, 1.0, -y * xm, -y * ym, -y],
-        ];
-        for (r, row) in rows.iter().enumerate() {
-            for (c, v) in row.iter().enumerate() {
-                a[(2 * k + r, c)] = *v;
-            }
-        }
-    }
-    let ata = a.transpose() * &a;
-    let eig = SymmetricEigen::new(ata);
-    let smallest = eig.eigenvalues.imin();
-    let h = eig.eigenvectors.column(smallest);
-    let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
-    let hm = ti.try_inverse()? * hn * tm;
-    let scale = hm[(2, 2)];
-    (scale.is_finite() && scale.abs() > f64::EPSILON).then(|| hm / scale)
-}
-
 /// Both IPPE candidates from a homography H (model plane, centred, mm → normalised image,
 /// H33 = 1), with each candidate's least-squares origin for `model` (centred, z = 0).
 pub fn candidates_from_homography(
@@ -245,7 +191,9 @@ mod tests {
     use crate::geometry::{
         euler::{EulerXyz, angle_between},
         frames::MarkerToCamera,
+        homography::fit_homography_dlt,
     };
+    use nalgebra::Point2;
 
     #[test]
     fn homography_maps_model_corners_onto_their_rays() {
@@ -307,8 +255,11 @@ mod tests {
         let rays = marker
             .object_points()
             .map(|m| pose.transform(&m).normalized().expect("in front"));
-        let model_xy = centred_model(&marker).map(|m| Vector2::new(m.x, m.y));
-        let dlt = homography_dlt(&model_xy, &rays).expect("non-degenerate");
+        let model_xy = centred_model(&marker).map(|m| Point2::new(m.x, m.y));
+        let dlt = fit_homography_dlt(&model_xy, &rays.map(|r| r.0))
+            .ok()
+            .and_then(|h| with_unit_h33(&h))
+            .expect("non-degenerate");
         let closed = homography_from_square(&rays, &marker).expect("non-degenerate");
         assert!(
             (dlt - closed).norm() < 1e-9 * closed.norm(),

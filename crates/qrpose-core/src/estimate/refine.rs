@@ -50,16 +50,6 @@ pub struct Refined {
     pub pose_trace: Option<Vec<(u32, CentredPose)>>,
 }
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    #[rustfmt::skip]
-    let m = Matrix3::new(
-        0.0,  -v.z, v.y,
-        v.z,  0.0,  -v.x,
-        -v.y, v.x,  0.0,
-    );
-    m
-}
-
 /// Sum of squared pixel residuals; infinite when a corner is at or behind the camera.
 pub(crate) fn cost(
     pose: &CentredPose,
@@ -103,7 +93,8 @@ fn linearise(
             -s.fy * p.y * inv_z * inv_z,
         );
         let mut dp = SMatrix::<f64, 3, 6>::zeros();
-        dp.fixed_view_mut::<3, 3>(0, 0).copy_from(&(-skew(&q)));
+        dp.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&(-q.cross_matrix()));
         dp.fixed_view_mut::<3, 3>(0, 3)
             .copy_from(&Matrix3::identity());
         let j = dproj * dp;

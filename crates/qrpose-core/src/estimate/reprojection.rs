@@ -16,9 +16,10 @@ use crate::geometry::{
     camera::{Camera, ImageUnit},
     euler::angle_between,
     frames::{MarkerPoint, MarkerToCamera, NormalizedPoint, PixelPoint},
+    homography::{fit_homography_dlt, with_unit_h33},
     marker::Marker,
 };
-use nalgebra::{Matrix6, Vector3};
+use nalgebra::{Matrix6, Point2, Vector3};
 
 /// `ambiguity.ambiguous` is set when the alternative pose has at least this posterior
 /// probability of being the true one, given Gaussian corner noise of `corner_sigma_px` and
@@ -138,8 +139,12 @@ pub fn estimate_planar_points(
         .collect::<Result<Vec<_>, _>>()?;
     let origin_mm = model.iter().map(|m| m.0.coords).sum::<Vector3<f64>>() / model.len() as f64;
     let centred: Vec<Vector3<f64>> = model.iter().map(|m| m.0.coords - origin_mm).collect();
-    let model_xy: Vec<nalgebra::Vector2<f64>> = centred.iter().map(|m| m.xy()).collect();
-    let h = ippe::homography_dlt(&model_xy, &rays).ok_or(DEGENERATE_HOMOGRAPHY)?;
+    let model_xy: Vec<Point2<f64>> = centred.iter().map(|m| Point2::new(m.x, m.y)).collect();
+    let ray_xy: Vec<Point2<f64>> = rays.iter().map(|r| r.0).collect();
+    let h = fit_homography_dlt(&model_xy, &ray_xy)
+        .ok()
+        .and_then(|h| with_unit_h33(&h))
+        .ok_or(DEGENERATE_HOMOGRAPHY)?;
     let planar = PlanarModel {
         centred: &centred,
         origin_mm,
@@ -292,13 +297,8 @@ fn first_is_better(a: &refine::Refined, b: &refine::Refined, floor_rms: f64) -> 
 /// so J = [[I, 0], [−[d]×, I]] and Σ' = J Σ Jᵀ.
 fn centre_covariance(cov: &Matrix6<f64>, d: &Vector3<f64>) -> Matrix6<f64> {
     let mut j = Matrix6::identity();
-    #[rustfmt::skip]
-    let minus_skew = nalgebra::Matrix3::new(
-        0.0,  d.z,  -d.y,
-        -d.z, 0.0,  d.x,
-        d.y,  -d.x, 0.0,
-    );
-    j.fixed_view_mut::<3, 3>(3, 0).copy_from(&minus_skew);
+    j.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&(-d.cross_matrix()));
     j * cov * j.transpose()
 }
 

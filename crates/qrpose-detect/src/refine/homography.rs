@@ -5,8 +5,9 @@
 //! [i, i + 1] × [j, j + 1]. Image coordinates are pixels with integer pixel centres
 //! (docs/conventions.md).
 
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{Matrix3, Point2, Vector3};
 use qrpose_core::geometry::frames::PixelPoint;
+use qrpose_core::geometry::homography::{fit_homography_dlt, with_unit_h33};
 
 /// A point in module coordinates (modules, right and down from the top-left corner).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,41 +45,13 @@ impl Homography {
         &self.h
     }
 
-    /// Fits the homography mapping `model` onto `image` (≥ 4 pairs) by the normalised DLT;
-    /// `None` when the points are degenerate.
-    pub(crate) fn fit(model: &[ModulePoint], image: &[PixelPoint]) -> Option<Self> {
-        if model.len() < 4 || model.len() != image.len() {
-            return None;
-        }
-        let (tm, model_n) = normalise(model.iter().map(|p| (p.u, p.v)));
-        let (ti, image_n) = normalise(image.iter().map(|p| (p.u(), p.v())));
-        let mut a = DMatrix::<f64>::zeros(2 * model.len(), 9);
-        for (k, ((x, y), (u, v))) in model_n.iter().zip(&image_n).enumerate() {
-            let r = 2 * k;
-            let row0 = [-x, -y, -1.0, 0.0, 0.0, 0.0, u * x, u * y, *u];
-            let row1 = [0.0, 0.0, 0.0, -x, -y, -1.0, v * x, v * y, *v];
-            for c in 0..9 {
-                a[(r, c)] = row0[c];
-                a[(r + 1, c)] = row1[c];
-            }
-        }
-        let ata = a.transpose() * &a;
-        let eig = ata.symmetric_eigen();
-        let (imin, _) = eig
-            .eigenvalues
-            .iter()
-            .enumerate()
-            .min_by(|a, b| a.1.total_cmp(b.1))?;
-        let h = eig.eigenvectors.column(imin);
-        let hn = Matrix3::new(h[0], h[1], h[2], h[3], h[4], h[5], h[6], h[7], h[8]);
-        let full = ti.try_inverse()? * hn * tm;
-        Self::from_matrix(full / full[(2, 2)])
-    }
-
     /// The homography taking the symbol's corners (0, 0), (n, 0), (n, n), (0, n) onto four
-    /// image corners in qr order (TL, TR, BR, BL).
+    /// image corners in qr order (TL, TR, BR, BL), by qrpose-core's normalised DLT, scaled
+    /// to H33 = 1; `None` when the corners are degenerate.
     pub(crate) fn from_corners(corners_qr: &[PixelPoint; 4], n_modules: f64) -> Option<Self> {
-        Self::fit(&symbol_corners(n_modules), corners_qr)
+        let from = symbol_corners(n_modules).map(|m| Point2::new(m.u, m.v));
+        let h = fit_homography_dlt(&from, &corners_qr.map(|p| p.0)).ok()?;
+        Self::from_matrix(with_unit_h33(&h)?)
     }
 
     /// The image of the symbol's corners (0, 0), (n, 0), (n, n), (0, n), qr order: the
@@ -107,27 +80,6 @@ impl Homography {
         let dv = self.map(ModulePoint::new(p.u, p.v + 1e-3));
         ((du.0 - a.0).norm() / 1e-3, (dv.0 - a.0).norm() / 1e-3)
     }
-}
-
-/// Hartley normalisation: centroid to the origin, mean distance √2.
-fn normalise(points: impl Iterator<Item = (f64, f64)>) -> (Matrix3<f64>, Vec<(f64, f64)>) {
-    let pts: Vec<(f64, f64)> = points.collect();
-    let n = pts.len().max(1) as f64;
-    let (cx, cy) = pts
-        .iter()
-        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
-    let mean = pts.iter().map(|(x, y)| (x - cx).hypot(y - cy)).sum::<f64>() / n;
-    let s = if mean > 0.0 {
-        std::f64::consts::SQRT_2 / mean
-    } else {
-        1.0
-    };
-    let t = Matrix3::new(s, 0.0, -s * cx, 0.0, s, -s * cy, 0.0, 0.0, 1.0);
-    let out = pts
-        .iter()
-        .map(|(x, y)| (s * (x - cx), s * (y - cy)))
-        .collect();
-    (t, out)
 }
 
 /// The corners of an n-module symbol in module coordinates, qr order (TL, TR, BR, BL).

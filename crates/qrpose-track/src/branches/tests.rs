@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::measurement::{Alternative, Corners};
-use crate::so3::{angle_between, exp};
+use crate::so3::angle_between;
 use nalgebra::{Rotation3, Vector2};
 use qrpose_core::geometry::marker::Marker;
 
@@ -14,7 +14,7 @@ fn candidate(ry: f64, rotation_sigma: f64) -> PoseCandidate {
         covariance[(i, i)] = rotation_sigma * rotation_sigma;
     }
     PoseCandidate {
-        rotation: exp(&Vector3::new(0.0, ry, 0.0)),
+        rotation: Rotation3::new(Vector3::new(0.0, ry, 0.0)),
         centre_mm: Vector3::new(0.0, 0.0, 1000.0),
         covariance,
     }

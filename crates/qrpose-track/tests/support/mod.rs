@@ -13,7 +13,7 @@ use qrpose_core::geometry::{
     marker::{CornerOrder, Marker},
     quad::ImageQuad,
 };
-use qrpose_track::so3::{angle_between, exp, log};
+use qrpose_track::so3::{angle_between, log};
 use qrpose_track::{Measurement, TrackReport, Tracker, TrackerParams};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -136,8 +136,8 @@ impl Motion {
         let psi: f64 = rng.gen_range(0.0..std::f64::consts::TAU);
         let tilt = rng.gen_range(0.0..max_tilt_deg).to_radians();
         let roll = rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI);
-        let rotation0 = exp(&(Vector3::new(psi.cos(), psi.sin(), 0.0) * tilt))
-            * exp(&Vector3::new(0.0, 0.0, roll));
+        let rotation0 = Rotation3::new(Vector3::new(psi.cos(), psi.sin(), 0.0) * tilt)
+            * Rotation3::new(Vector3::new(0.0, 0.0, roll));
         Self {
             centre0,
             rotation0,
@@ -198,7 +198,7 @@ impl Motion {
             (w + self.phase.y).sin(),
             (w + self.phase.z).sin(),
         );
-        let r = exp(&self.rotation_amp_rad.component_mul(&s)) * self.rotation0;
+        let r = Rotation3::new(self.rotation_amp_rad.component_mul(&s)) * self.rotation0;
         (r, self.centre0 + self.centre_amp_mm.component_mul(&s))
     }
 }
@@ -287,7 +287,7 @@ pub fn rotation_spread_deg(rs: &[Rotation3<f64>]) -> f64 {
             .map(|r| log(&(r * mean.inverse())))
             .sum::<Vector3<f64>>()
             / n;
-        mean = exp(&step) * mean;
+        mean = Rotation3::new(step) * mean;
     }
     (rs.iter()
         .map(|r| angle_between(r, &mean).powi(2))
