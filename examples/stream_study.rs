@@ -386,7 +386,7 @@ fn spread(positions: &[Vector3<f64>], rotations: &[Rotation3<f64>]) -> (f64, f64
         .map(|r| qrpose_track::so3::log(&(r * first.inverse())))
         .sum::<Vector3<f64>>()
         / n;
-    let mean_r = qrpose_track::so3::exp(&mean_log) * first;
+    let mean_r = nalgebra::Rotation3::new(mean_log) * first;
     let rot = (rotations
         .iter()
         .map(|r| angle_deg(r, &mean_r).powi(2))

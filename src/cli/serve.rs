@@ -7,8 +7,7 @@
 
 use anyhow::Context;
 use qrpose::config::{ServeArgs, Settings};
-use qrpose::http::{self, AppState};
-use qrpose_site::Site;
+use qrpose::http::{self, AppState, StateError};
 use std::process::ExitCode;
 use std::time::Duration;
 
@@ -59,10 +58,9 @@ fn reload_on_sighup(state: AppState) -> anyhow::Result<()> {
     Ok(())
 }
 
-async fn serve(settings: Settings, site: Option<Site>) -> anyhow::Result<()> {
-    let addr = settings.addr;
+async fn serve(state: AppState) -> anyhow::Result<()> {
+    let addr = state.settings.addr;
     let shutdown = shutdown_signal()?;
-    let state = AppState::with_site(settings, site).context("cannot build the service state")?;
     reload_on_sighup(state.clone())?;
     let listener = tokio::net::TcpListener::bind(addr)
         .await
@@ -119,26 +117,27 @@ pub fn run(args: ServeArgs) -> ExitCode {
         Ok(site) => site,
         Err(code) => return code,
     };
-    // So is a bad auth file (the state loads it again, a moment later).
-    if let Some(file) = &settings.security.auth_file
-        && let Err(e) = qrpose::config::auth::Clients::load(file)
-    {
-        eprintln!("qrpose serve: {e}");
-        return ExitCode::from(super::EXIT_BAD_INPUT);
-    }
-    if let Some(files) = &settings.security.tls
-        && let Err(e) = qrpose::http::tls::server_config(files)
-    {
-        eprintln!("qrpose serve: {e}");
-        return ExitCode::from(super::EXIT_BAD_INPUT);
-    }
-    if let Err(e) = qrpose::telemetry::init(settings.log_format) {
+    // So are a bad auth file and bad TLS files, each loaded and validated once, here.
+    let log_format = settings.log_format;
+    let worker_threads = settings.worker_threads.get();
+    let state = match AppState::with_site(settings, site) {
+        Ok(state) => state,
+        Err(e @ (StateError::Auth(_) | StateError::Tls(_) | StateError::Site(_))) => {
+            eprintln!("qrpose serve: {e}");
+            return ExitCode::from(super::EXIT_BAD_INPUT);
+        }
+        Err(e @ StateError::Workers(_)) => {
+            eprintln!("qrpose serve: cannot build the service state: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    if let Err(e) = qrpose::telemetry::init(log_format) {
         eprintln!("qrpose serve: {e}");
         return ExitCode::FAILURE;
     }
     qrpose::telemetry::log_panics();
     let runtime = match tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(settings.worker_threads.get())
+        .worker_threads(worker_threads)
         .enable_all()
         .build()
     {
@@ -148,7 +147,7 @@ pub fn run(args: ServeArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let result = runtime.block_on(serve(settings, site));
+    let result = runtime.block_on(serve(state));
     runtime.shutdown_timeout(RUNTIME_SHUTDOWN_TIMEOUT);
     match result {
         Ok(()) => ExitCode::SUCCESS,

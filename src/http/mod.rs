@@ -22,6 +22,7 @@ pub mod middleware;
 pub mod negotiate;
 pub mod openapi;
 pub mod queue;
+pub mod reload;
 pub mod routes;
 pub mod state;
 pub mod stream;

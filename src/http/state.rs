@@ -3,11 +3,12 @@
 use super::auth::AuthStore;
 use super::metrics::Metrics;
 use super::queue::EstimationQueue;
+use super::reload::Reloadable;
 use crate::app::{Site, SiteError};
 use crate::config::Settings;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, PoisonError, RwLock};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_util::sync::CancellationToken;
 
@@ -39,12 +40,16 @@ impl Lifecycle {
 
 /// The loaded site, swapped whole on reload: a request takes one snapshot
 /// ([`SiteStore::current`]) and uses it throughout, so it never sees half of a reload.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct SiteStore {
     path: Option<PathBuf>,
-    current: Arc<RwLock<Option<Arc<Site>>>>,
-    /// Held while a reload reads and swaps, so that two reloads cannot finish out of order.
-    reloading: Arc<Mutex<()>>,
+    current: Arc<Reloadable<Option<Arc<Site>>>>,
+}
+
+impl Default for SiteStore {
+    fn default() -> Self {
+        Self::new(None, None)
+    }
 }
 
 /// Why a reload did not change the site.
@@ -63,8 +68,7 @@ impl SiteStore {
     pub fn new(path: Option<PathBuf>, site: Option<Site>) -> Self {
         Self {
             path,
-            current: Arc::new(RwLock::new(site.map(Arc::new))),
-            reloading: Arc::default(),
+            current: Arc::new(Reloadable::new(site.map(Arc::new))),
         }
     }
 
@@ -75,10 +79,7 @@ impl SiteStore {
 
     /// The site loaded now, if any.
     pub fn current(&self) -> Option<Arc<Site>> {
-        self.current
-            .read()
-            .unwrap_or_else(PoisonError::into_inner)
-            .clone()
+        self.current.get()
     }
 
     /// Reads and validates the site file again and, when it is valid, swaps it in. Blocking
@@ -88,13 +89,11 @@ impl SiteStore {
     /// [`ReloadError`]; the site loaded before stays in use.
     pub fn reload(&self) -> Result<Arc<Site>, ReloadError> {
         let path = self.path.as_deref().ok_or(ReloadError::NoSite)?;
-        let _one_at_a_time = self
-            .reloading
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        let site = Arc::new(Site::load(path)?);
-        *self.current.write().unwrap_or_else(PoisonError::into_inner) = Some(Arc::clone(&site));
-        Ok(site)
+        let loaded = self
+            .current
+            .reload(|| Ok::<_, ReloadError>(Some(Arc::new(Site::load(path)?))))?;
+        // Always a site: the loader above gives one or fails.
+        loaded.ok_or(ReloadError::NoSite)
     }
 }
 

@@ -20,12 +20,6 @@ use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 /// error (θ⁴ terms) is below double precision there.
 const SMALL_ANGLE_RAD: f64 = 1e-5;
 
-/// Exp(φ): the rotation by |φ| rad about φ/|φ|, which is nalgebra's `Rotation3::new(φ)`.
-/// This crate calls `Rotation3::new` itself; the function stays for callers outside it.
-pub fn exp(phi: &Vector3<f64>) -> Rotation3<f64> {
-    Rotation3::new(*phi)
-}
-
 /// Log(R): the rotation vector φ with Exp(φ) = R, |φ| ≤ π: nalgebra's
 /// `UnitQuaternion::scaled_axis` of R's unit quaternion q = (w, v), θ = 2·atan2(|v|, |w|),
 /// φ = θ·v/|v| with v's sign flipped when w < 0 (Solà 2017 §2.4), which keeps full
@@ -87,7 +81,6 @@ mod tests {
             let r = Rotation3::new(phi);
             assert_relative_eq!(log(&r), phi, max_relative = 1e-9, epsilon = 1e-15);
             assert_relative_eq!(*r.matrix(), rodrigues(&phi), epsilon = 1e-12);
-            assert_eq!(exp(&phi), r);
         }
     }
 

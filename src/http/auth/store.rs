@@ -3,20 +3,29 @@
 
 use crate::config::auth::{AuthFileError, Clients};
 use crate::http::metrics::AuthMetrics;
+use crate::http::reload::Reloadable;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, PoisonError, RwLock};
+use std::sync::Arc;
 
 /// The loaded clients, or none (every route open); cheap to clone.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct AuthStore(Arc<Inner>);
 
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct Inner {
     file: Option<PathBuf>,
-    current: RwLock<Option<Arc<Clients>>>,
-    /// Held while a reload reads and swaps, so that two reloads cannot finish out of order.
-    reloading: Mutex<()>,
+    current: Reloadable<Option<Arc<Clients>>>,
     metrics: AuthMetrics,
+}
+
+impl Default for AuthStore {
+    fn default() -> Self {
+        Self(Arc::new(Inner {
+            file: None,
+            current: Reloadable::new(None),
+            metrics: AuthMetrics::default(),
+        }))
+    }
 }
 
 /// Why a reload did not change the clients.
@@ -42,8 +51,7 @@ impl AuthStore {
         }
         Ok(Self(Arc::new(Inner {
             file,
-            current: RwLock::new(clients.map(Arc::new)),
-            reloading: Mutex::new(()),
+            current: Reloadable::new(clients.map(Arc::new)),
             metrics,
         })))
     }
@@ -55,20 +63,12 @@ impl AuthStore {
 
     /// Whether tokens are checked (an auth file is loaded).
     pub fn is_on(&self) -> bool {
-        self.0
-            .current
-            .read()
-            .unwrap_or_else(PoisonError::into_inner)
-            .is_some()
+        self.0.file.is_some()
     }
 
     /// The clients loaded now; `None`: auth is off.
     pub fn current(&self) -> Option<Arc<Clients>> {
-        self.0
-            .current
-            .read()
-            .unwrap_or_else(PoisonError::into_inner)
-            .clone()
+        self.0.current.get()
     }
 
     /// The metrics the auth layer counts into.
@@ -85,19 +85,12 @@ impl AuthStore {
     /// [`AuthReloadError`]; the clients loaded before stay in use.
     pub fn reload(&self) -> Result<Arc<Clients>, AuthReloadError> {
         let file = self.0.file.as_deref().ok_or(AuthReloadError::NoFile)?;
-        let _one_at_a_time = self
+        let loaded = self
             .0
-            .reloading
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        match Clients::load(file) {
-            Ok(clients) => {
-                let clients = Arc::new(clients);
-                *self
-                    .0
-                    .current
-                    .write()
-                    .unwrap_or_else(PoisonError::into_inner) = Some(Arc::clone(&clients));
+            .current
+            .reload(|| Clients::load(file).map(|clients| Some(Arc::new(clients))));
+        match loaded.map(|clients| clients.ok_or(AuthReloadError::NoFile)) {
+            Ok(Ok(clients)) => {
                 self.0.metrics.clients.set(gauge_value(&clients));
                 self.0.metrics.observe_auth_reload(true);
                 tracing::info!(
@@ -108,6 +101,7 @@ impl AuthStore {
                 );
                 Ok(clients)
             }
+            Ok(Err(e)) => Err(e),
             Err(e) => {
                 self.0.metrics.observe_auth_reload(false);
                 tracing::warn!(error = %e, "auth file reload refused; the clients loaded before stay in use");

@@ -20,6 +20,7 @@ mod stream;
 pub use accept::handshake;
 pub use stream::ServerStream;
 
+use super::reload::Reloadable;
 use crate::config::TlsFiles;
 use crate::http::metrics::AuthMetrics;
 use rustls::ServerConfig;
@@ -27,7 +28,7 @@ use rustls::pki_types::pem::PemObject;
 use rustls::pki_types::{CertificateDer, PrivateKeyDer};
 use rustls::server::WebPkiClientVerifier;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, PoisonError, RwLock};
+use std::sync::Arc;
 use tokio_rustls::TlsAcceptor;
 
 /// Why a TLS file was refused: `FILE: reason`.
@@ -115,9 +116,7 @@ pub struct TlsStore(Arc<Inner>);
 
 struct Inner {
     files: TlsFiles,
-    current: RwLock<TlsAcceptor>,
-    /// Held while a reload reads and swaps, so that two reloads cannot finish out of order.
-    reloading: Mutex<()>,
+    current: Reloadable<TlsAcceptor>,
     metrics: AuthMetrics,
 }
 
@@ -138,8 +137,7 @@ impl TlsStore {
         let config = server_config(&files)?;
         Ok(Self(Arc::new(Inner {
             files,
-            current: RwLock::new(TlsAcceptor::from(Arc::new(config))),
-            reloading: Mutex::new(()),
+            current: Reloadable::new(TlsAcceptor::from(Arc::new(config))),
             metrics,
         })))
     }
@@ -151,11 +149,7 @@ impl TlsStore {
 
     /// The acceptor for a new connection: the configuration in use now.
     pub fn acceptor(&self) -> TlsAcceptor {
-        self.0
-            .current
-            .read()
-            .unwrap_or_else(PoisonError::into_inner)
-            .clone()
+        self.0.current.get()
     }
 
     /// The metrics of refused connections and reloads.
@@ -171,18 +165,10 @@ impl TlsStore {
     /// # Errors
     /// [`TlsError`]; the configuration in use stays.
     pub fn reload(&self) -> Result<(), TlsError> {
-        let _one_at_a_time = self
-            .0
-            .reloading
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        match server_config(&self.0.files) {
-            Ok(config) => {
-                *self
-                    .0
-                    .current
-                    .write()
-                    .unwrap_or_else(PoisonError::into_inner) = TlsAcceptor::from(Arc::new(config));
+        let loaded = (self.0.current)
+            .reload(|| server_config(&self.0.files).map(|c| TlsAcceptor::from(Arc::new(c))));
+        match loaded {
+            Ok(_) => {
                 self.0.metrics.observe_tls_reload(true);
                 tracing::info!(cert = %self.0.files.cert.display(), "TLS certificate reloaded");
                 Ok(())
