@@ -277,3 +277,26 @@ fn estimate_of_a_corners_request_by_camera_id_matches_the_same_request_with_intr
     assert!(by_id["pose_in_robot"].is_object() && plain["pose_in_robot"].is_null());
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A refused auth file or TLS file stops `qrpose serve` before it listens, exit 2, naming
+/// the file: each is loaded and validated once, into the state the server then runs on.
+#[test]
+fn serve_refuses_a_bad_auth_or_tls_file_at_start_with_exit_2() {
+    let dir = std::env::temp_dir().join(format!("qrpose-serve-files-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a directory");
+    let auth = dir.join("auth.yaml");
+    std::fs::write(&auth, "clients: [").expect("written");
+    let cert = dir.join("cert.pem");
+    std::fs::write(&cert, "not a certificate").expect("written");
+    let (auth, cert) = (auth.display().to_string(), cert.display().to_string());
+    for flags in [
+        vec!["--auth-file", auth.as_str()],
+        vec!["--tls-cert", cert.as_str(), "--tls-key", cert.as_str()],
+    ] {
+        let out = run(&[&["serve", "--addr", "127.0.0.1:0"], &flags[..]].concat());
+        assert_eq!(out.status.code(), Some(2), "{flags:?}: {out:?}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(flags[1]), "{flags:?}: {stderr}");
+        assert!(!String::from_utf8_lossy(&out.stdout).contains("listening"));
+    }
+}
