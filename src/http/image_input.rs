@@ -206,10 +206,44 @@ async fn multipart_input(
     let request = extract::buffer_body(request, limit_bytes, |body| budgeted(body, permit))
         .await
         .map_err(|e| body_error(e, ErrorCode::MalformedMultipart))?;
+    let (images, request_json) = read_form(request, state, limit_bytes, ImageParts::One).await?;
+    let image = images
+        .into_iter()
+        .next()
+        .ok_or_else(|| missing_part(IMAGE_PART))?;
+    Ok(ImageInput::Multipart {
+        image,
+        request_json,
+        query,
+    })
+}
+
+/// How many `image` parts a form takes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ImageParts {
+    /// Exactly one (`POST /v1/pose/image`); a second is `malformed_multipart`.
+    One,
+    /// One or more, in order (`POST /v1/calibrate`).
+    Many,
+}
+
+/// The one multipart reader of the service: the `image` parts (as `images` says) and the
+/// `request` part, exactly once, from a body already buffered; any other part is refused
+/// (`unknown_field`), a missing one is `missing_field`, broken framing `malformed_multipart`.
+pub(crate) async fn read_form(
+    request: Request,
+    state: &AppState,
+    limit_bytes: usize,
+    images: ImageParts,
+) -> Result<(Vec<Bytes>, Bytes), ApiError> {
     let mut multipart = Multipart::from_request(request, state)
         .await
         .map_err(|rejection| malformed_multipart(rejection.body_text(), None))?;
-    let (mut image, mut request_json) = (None, None);
+    let expected = match images {
+        ImageParts::One => format!("`{IMAGE_PART}` and `{REQUEST_PART}`"),
+        ImageParts::Many => format!("`{IMAGE_PART}` (repeated) and `{REQUEST_PART}`"),
+    };
+    let (mut photos, mut request_json) = (Vec::new(), None);
     while let Some(part) = multipart
         .next_field()
         .await
@@ -221,39 +255,33 @@ async fn multipart_input(
                 None,
             ));
         };
-        let slot = match name.as_str() {
-            IMAGE_PART => &mut image,
-            REQUEST_PART => &mut request_json,
+        let twice = match name.as_str() {
+            IMAGE_PART => images == ImageParts::One && !photos.is_empty(),
+            REQUEST_PART => request_json.is_some(),
             _ => {
-                return Err(Problem::new(
-                    ErrorCode::UnknownField,
-                    format!(
-                        "unknown part `{name}`; send the parts `{IMAGE_PART}` and `{REQUEST_PART}`"
-                    ),
-                )
-                .with_field(name)
-                .into());
+                let detail = format!("unknown part `{name}`; send the parts {expected}");
+                let problem = Problem::new(ErrorCode::UnknownField, detail).with_field(name);
+                return Err(problem.into());
             }
         };
-        if slot.is_some() {
-            return Err(malformed_multipart(
-                format!("the part `{name}` is given twice"),
-                Some(name),
-            ));
+        if twice {
+            let detail = format!("the part `{name}` is given twice");
+            return Err(malformed_multipart(detail, Some(name)));
         }
         let bytes = part
             .bytes()
             .await
             .map_err(|e| multipart_error(&e, limit_bytes, Some(&name)))?;
-        *slot = Some(bytes);
+        match name.as_str() {
+            IMAGE_PART => photos.push(bytes),
+            _ => request_json = Some(bytes),
+        }
     }
-    let image = image.ok_or_else(|| missing_part(IMAGE_PART))?;
+    if photos.is_empty() {
+        return Err(missing_part(IMAGE_PART));
+    }
     let request_json = request_json.ok_or_else(|| missing_part(REQUEST_PART))?;
-    Ok(ImageInput::Multipart {
-        image,
-        request_json,
-        query,
-    })
+    Ok((photos, request_json))
 }
 
 /// A body that could not be buffered: 413 over the limit, else `unreadable`.

@@ -11,11 +11,11 @@ use crate::app::ImageLimits;
 use crate::http::{
     error::ApiError,
     extract::{self, JsonBytes},
-    image_input::{self, IMAGE_PART, MULTIPART, REQUEST_PART, malformed_multipart, missing_part},
+    image_input::{self, ImageParts, MULTIPART},
     state::AppState,
 };
 use axum::body::Bytes;
-use axum::extract::{FromRequest, Multipart, Request, State};
+use axum::extract::{FromRequest, Request, State};
 use utoipa::ToSchema;
 
 /// The route.
@@ -173,52 +173,8 @@ impl FromRequest<AppState> for CalibrateInput {
         })
         .await
         .map_err(|e| image_input::body_error(e, ErrorCode::MalformedMultipart))?;
-        let mut multipart = Multipart::from_request(request, state)
-            .await
-            .map_err(|rejection| malformed_multipart(rejection.body_text(), None))?;
-        let (mut photos, mut request_json) = (Vec::new(), None);
-        while let Some(part) = multipart
-            .next_field()
-            .await
-            .map_err(|e| image_input::multipart_error(&e, limit_bytes, None))?
-        {
-            let name = part.name().map(str::to_owned).ok_or_else(|| {
-                malformed_multipart(
-                    format!(
-                        "a part has no name; send the parts `{IMAGE_PART}` and `{REQUEST_PART}`"
-                    ),
-                    None,
-                )
-            })?;
-            let bytes = part
-                .bytes()
-                .await
-                .map_err(|e| image_input::multipart_error(&e, limit_bytes, Some(&name)))?;
-            match name.as_str() {
-                IMAGE_PART => photos.push(bytes),
-                REQUEST_PART if request_json.is_some() => {
-                    return Err(malformed_multipart(
-                        format!("the part `{REQUEST_PART}` is given twice"),
-                        Some(name),
-                    ));
-                }
-                REQUEST_PART => request_json = Some(bytes),
-                _ => {
-                    return Err(Problem::new(
-                        ErrorCode::UnknownField,
-                        format!(
-                            "unknown part `{name}`; send the parts `{IMAGE_PART}` (repeated) and `{REQUEST_PART}`"
-                        ),
-                    )
-                    .with_field(name)
-                    .into());
-                }
-            }
-        }
-        if photos.is_empty() {
-            return Err(missing_part(IMAGE_PART));
-        }
-        let request_json = request_json.ok_or_else(|| missing_part(REQUEST_PART))?;
+        let (photos, request_json) =
+            image_input::read_form(request, state, limit_bytes, ImageParts::Many).await?;
         Ok(Self {
             photos,
             request_json,
