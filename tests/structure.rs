@@ -448,3 +448,21 @@ fn http_reaches_the_crates_only_through_the_application_layer() {
         "the application layer names config: {config:?}"
     );
 }
+
+/// The numerical core keeps no state of its own: no thread-local or global counter for
+/// tests to read (the image answer counts its solves where a test can see them).
+#[test]
+fn the_core_keeps_no_global_or_thread_local_state() {
+    let mut files = Vec::new();
+    rust_files(&Path::new(ROOT).join("crates/qrpose-core/src"), &mut files);
+    assert!(files.len() > 10, "{} files", files.len());
+    let stateful: Vec<String> = files
+        .iter()
+        .filter(|file| {
+            let text = std::fs::read_to_string(file).expect("utf-8");
+            text.contains("thread_local!") || text.contains("static mut ")
+        })
+        .map(|file| file.display().to_string())
+        .collect();
+    assert!(stateful.is_empty(), "state in the core: {stateful:?}");
+}

@@ -79,6 +79,9 @@ pub struct ImageAnswer {
     pub budget_exhausted: bool,
     /// Time per stage.
     pub timing: Timing,
+    /// Poses solved for this answer: one per code with a size (the detector asks each
+    /// code's size before it solves), none for a code without one.
+    pub solves: usize,
 }
 
 /// Decodes `bytes` and finds, reads and solves every QR code in it, as `setup` says;
@@ -155,6 +158,7 @@ fn answer_of_located(
         markers,
         localization,
         budget_exhausted: located.budget_exhausted,
+        solves: located.solves,
         timing: Timing {
             decode_ms,
             detect_ms: located.detect_ms,

@@ -17,8 +17,8 @@
 //! `api::refusal`.
 //!
 //! Every code is solved once, at its own size: the detector asks the setup's
-//! [`SizeResolver`] for each code's size before it solves (see the core's
-//! `estimate::count`, which the tests read). Cancellation and the detection deadline travel
+//! [`SizeResolver`] for each code's size before it solves, and counts its solves
+//! ([`ImageAnswer::solves`]). Cancellation and the detection deadline travel
 //! in the detection budget ([`DetectSetup::budget`]).
 
 mod calibrate;

@@ -4,6 +4,7 @@
 
 use nalgebra::Vector3;
 use qrpose::api::image::{ImageLimits, ImageRequest, ImageResponse, estimate_image};
+use qrpose::app::CancelFlag;
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
 use qrpose_sim::render::{CodePlacement, EcLevel, Effects, Encoding, MultiScene, render_scene};
 use qrpose_site::Site;
@@ -170,17 +171,6 @@ markers:
     - {prefix: \"TOTE-\", size_mm: 50}
 ";
 
-/// Poses solved on this thread while `f` runs (the core counts every solve,
-/// `qrpose_core::estimate::count`).
-fn solves_during<T>(f: impl FnOnce() -> T) -> (T, u64) {
-    let before = qrpose::estimate::count::solves_on_this_thread();
-    let out = f();
-    (
-        out,
-        qrpose::estimate::count::solves_on_this_thread() - before,
-    )
-}
-
 /// Regression: a photo request sized by the site solved every code twice (once at a 100 mm
 /// stand-in size, once at its own). Each code is now solved once, at its own size, and a
 /// code the site cannot size not at all.
@@ -220,23 +210,19 @@ fn each_code_of_a_photo_is_solved_once_at_its_own_size() {
     for (name, site, body, markers, solves) in cases {
         let site = std::sync::Arc::new(Site::parse(site, Path::new("site.yaml")).expect("a site"));
         let request: ImageRequest = serde_json::from_value(body).expect("a request");
-        let (response, counted) = solves_during(|| {
-            estimate_image(&jpeg, &request, &ImageLimits::default(), Some(site)).expect("estimates")
-        });
-        assert_eq!(response.markers.len(), markers, "{name}");
-        let posed = response.markers.iter().filter(|m| m.pose.is_some()).count();
+        let setup = (request.setup(&ImageLimits::default(), Some(site))).expect("a setup");
+        let answer =
+            qrpose::app::estimate_image(&setup, &jpeg, CancelFlag::default()).expect("estimates");
+        assert_eq!(answer.markers.len(), markers, "{name}");
+        let posed = answer.markers.iter().filter(|m| m.pose.is_ok()).count();
         assert_eq!(posed, solves, "{name}: codes with a pose");
-        assert_eq!(
-            counted,
-            u64::try_from(solves).expect("small"),
-            "{name}: solves"
-        );
+        assert_eq!(answer.solves, solves, "{name}: solves");
     }
 }
 
-/// A corners request is one solve, with or without a site.
+/// A corners request takes its marker's size from the site by its payload.
 #[test]
-fn a_corners_request_is_solved_once() {
+fn a_corners_request_is_sized_by_the_site() {
     let site = std::sync::Arc::new(Site::parse(SITE, Path::new("site.yaml")).expect("a site"));
     let request: qrpose::api::request::CornersRequest = serde_json::from_value(json!({
         "corners_px": [[589.2, 309.8], [689.9, 311.4], [688.1, 411.6], [588.0, 409.5]],
@@ -244,8 +230,6 @@ fn a_corners_request_is_solved_once() {
         "payload": "TOTE-0009"
     }))
     .expect("a request");
-    let (response, counted) =
-        solves_during(|| qrpose::api::estimate_corners(&request, Some(site)).expect("a pose"));
+    let response = qrpose::api::estimate_corners(&request, Some(site)).expect("a pose");
     assert_eq!(response.marker_size_mm, 50.0);
-    assert_eq!(counted, 1);
 }

@@ -137,6 +137,8 @@ pub struct Located<Src = ()> {
     pub budget_exhausted: bool,
     /// Pose estimation of every code, ms.
     pub estimate_ms: f64,
+    /// Poses solved: one per code with a size, none for a code without one.
+    pub solves: usize,
 }
 
 /// Finds, reads and refines every QR code in `image` and solves each one's pose, once, at
@@ -184,13 +186,17 @@ fn located<S: MarkerSizes>(
     let codes = refined_through_lens(image, codes, &setup.camera);
     let detect_ms = ms_since(started);
     let started = Instant::now();
+    let mut solves = 0;
     let markers = codes
         .into_iter()
         .map(|code| {
             let solving = Instant::now();
             let marker = setup.sizes.marker_for(code.candidate.text.as_deref());
             let (points_used, pose) = match &marker {
-                Some((size, _)) => solve(&code, setup, size, points),
+                Some((size, _)) => {
+                    solves += 1;
+                    solve(&code, setup, size, points)
+                }
                 None => (Points::Corners, Err(MarkerError::UnknownSize)),
             };
             LocatedMarker {
@@ -208,6 +214,7 @@ fn located<S: MarkerSizes>(
         passes: log.passes,
         budget_exhausted: log.budget_exhausted,
         estimate_ms: ms_since(started),
+        solves,
     }
 }
 

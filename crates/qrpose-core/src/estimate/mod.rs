@@ -15,7 +15,6 @@
 //! validated image corners, [`estimate_from_rays`] for corners already normalised,
 //! [`estimate_planar_points`] for more than four points of the marker plane.
 
-pub mod count;
 pub mod depth_newton;
 pub mod fit;
 pub mod ippe;
@@ -103,7 +102,6 @@ pub fn estimate_from_rays(
     marker: &Marker,
     solver: &ValidSolver,
 ) -> Result<PoseEstimate, EstimateError> {
-    count::count_solve();
     let mut estimate = match solver.solver() {
         Solver::Paper(params) => {
             let depths = iterative::iterate(rays, marker, params);

@@ -120,7 +120,6 @@ pub fn estimate_planar_points(
     marker: &Marker,
     solver: &ValidSolver,
 ) -> Result<PoseEstimate, EstimateError> {
-    super::count::count_solve();
     let params = solver.as_reprojection();
     if model.len() < 4 || model.len() != image.len() {
         return Err(EstimateError::PointCount {
