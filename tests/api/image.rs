@@ -441,3 +441,80 @@ async fn image_requests_share_the_bounded_queue() {
         .await;
     assert_eq!(response.status(), StatusCode::OK);
 }
+
+/// A fisheye camera goes in the query as in the JSON form (`distortion_model`, k1-k4): a
+/// photo taken through one, sent as the raw body, gives the code at its true distance; the
+/// same query without the lens does not.
+#[tokio::test]
+async fn a_fisheye_camera_comes_through_the_query_parameters() {
+    // Arrange: a 60 mm code 250 mm away, seen through the fisheye of docs/calibration.md.
+    let dir = std::env::temp_dir().join(format!("qrpose-fisheye-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a directory");
+    let path = dir.join("fisheye.png");
+    let args = [
+        "--out",
+        path.to_str().expect("utf-8"),
+        "--width-px",
+        "848",
+        "--height-px",
+        "800",
+        "--fx-px",
+        "285.72",
+        "--fy-px",
+        "285.93",
+        "--cx-px",
+        "423.08",
+        "--cy-px",
+        "401.44",
+        "--distortion-model",
+        "equidistant",
+        "--distortion-coefficients=-0.00566,0.04186,-0.03869,0.00673",
+        "--x-mm",
+        "60",
+        "--z-mm",
+        "250",
+        "--beta-deg",
+        "20",
+        "--marker-size-mm",
+        "60",
+    ]
+    .map(std::ffi::OsStr::new);
+    let truth = qrpose_sim::cli::render(&args).expect("renders");
+    let photo = std::fs::read(&path).expect("the photo");
+    let camera = "fx_px=285.72&fy_px=285.93&cx_px=423.08&cy_px=401.44&marker_size_mm=60";
+    let lens = "distortion_model=equidistant&k1=-0.00566&k2=0.04186&k3=-0.03869&k4=0.00673";
+    let app = spawn_app().await;
+
+    // Act
+    let through = app
+        .post_image(
+            &format!("{camera}&{lens}"),
+            photo.clone(),
+            Some("image/png"),
+        )
+        .await;
+    let pinhole = app.post_image(camera, photo, Some("image/png")).await;
+
+    // Assert
+    let z = |body: &ImageResponse| {
+        let pose = body.markers[0].pose.as_ref().expect("a pose");
+        pose.position_mm.z
+    };
+    let true_z = truth["truth"]["position_mm"][2]
+        .as_f64()
+        .expect("the true depth");
+    let through = image_response(through).await;
+    assert!(
+        (z(&through) - true_z).abs() < 2.0,
+        "{} vs {true_z}",
+        z(&through)
+    );
+    let pinhole = image_response(pinhole).await;
+    if let Some(marker) = pinhole.markers.first().and_then(|m| m.pose.as_ref()) {
+        assert!(
+            (marker.position_mm.z - true_z).abs() > 5.0,
+            "the lens matters"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

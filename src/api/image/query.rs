@@ -8,6 +8,7 @@
 //! parameter the client wrote (`fx_px`) by [`ImageQuery::problem_in_query_terms`].
 
 use super::{DetectorDto, EffortDto, ImageRequest, PointsDto};
+use crate::api::camera::DistortionModelDto;
 use crate::api::problem::{ErrorCode, Problem};
 use crate::api::refusal::problem_from_camera_error;
 use crate::api::request::{CameraDto, DistortionDto, MarkerDto, MethodDto, SolverDto};
@@ -68,6 +69,20 @@ pub struct ImageQuery {
     /// Tangential coefficient p2.
     #[arg(long, allow_negative_numbers = true)]
     pub p2: Option<f64>,
+    /// The lens model of the coefficients: `plumb_bob` when omitted (k1 k2 p1 p2 k3),
+    /// `rational_polynomial` (k1 k2 p1 p2 k3 k4 k5 k6) or `equidistant` (fisheye: k1 k2 k3
+    /// k4), as the JSON form's `camera.distortion.model`.
+    #[arg(long, value_enum)]
+    pub distortion_model: Option<DistortionModelDto>,
+    /// `rational_polynomial`: the denominator's r² coefficient; `equidistant`: θ⁹.
+    #[arg(long, allow_negative_numbers = true)]
+    pub k4: Option<f64>,
+    /// `rational_polynomial` only: the denominator's r⁴ coefficient.
+    #[arg(long, allow_negative_numbers = true)]
+    pub k5: Option<f64>,
+    /// `rational_polynomial` only: the denominator's r⁶ coefficient.
+    #[arg(long, allow_negative_numbers = true)]
+    pub k6: Option<f64>,
     /// Side of the QR symbol, mm (finder edge to finder edge, quiet zone excluded). Required
     /// unless a site is loaded: then each code is sized by its payload.
     #[param(exclusive_minimum = 0)]
@@ -125,6 +140,9 @@ const CAMERA_ID_PARAMETER: &str = "camera_id";
 const MARKER_POINTER: &str = "/marker";
 /// The query parameter of the marker size.
 const MARKER_SIZE_PARAMETER: &str = "marker_size_mm";
+/// The query parameter of the lens model, and the field it stands for.
+const DISTORTION_MODEL_PARAMETER: &str = "distortion_model";
+const DISTORTION_MODEL_POINTER: &str = "/camera/distortion/model";
 
 impl ImageQuery {
     /// The JSON-form request these parameters stand for. Without `marker_size_mm` it has
@@ -133,16 +151,21 @@ impl ImageQuery {
     /// # Errors
     /// None today; the signature keeps room for checks of the flat form.
     pub fn into_request(self) -> Result<ImageRequest, Problem> {
-        let any_distortion = [self.k1, self.k2, self.k3, self.p1, self.p2]
-            .iter()
-            .any(Option::is_some);
+        let coefficients = [
+            self.k1, self.k2, self.k3, self.p1, self.p2, self.k4, self.k5, self.k6,
+        ];
+        let any_distortion =
+            self.distortion_model.is_some() || coefficients.iter().any(Option::is_some);
         let distortion = any_distortion.then(|| DistortionDto {
+            model: self.distortion_model,
             k1: self.k1.unwrap_or(0.0),
             k2: self.k2.unwrap_or(0.0),
             p1: self.p1.unwrap_or(0.0),
             p2: self.p2.unwrap_or(0.0),
             k3: self.k3.unwrap_or(0.0),
-            ..DistortionDto::default()
+            k4: self.k4.unwrap_or(0.0),
+            k5: self.k5.unwrap_or(0.0),
+            k6: self.k6.unwrap_or(0.0),
         });
         let defaults = SolverDto::default();
         Ok(ImageRequest {
@@ -244,7 +267,10 @@ impl ImageQuery {
             "fx_px" | "fy_px" | "cx_px" | "cy_px" | "focal_length_mm" | "pixel_size_um" => {
                 format!("/camera/{name}")
             }
-            "k1" | "k2" | "k3" | "p1" | "p2" => format!("/camera/distortion/{name}"),
+            "k1" | "k2" | "k3" | "p1" | "p2" | "k4" | "k5" | "k6" => {
+                format!("/camera/distortion/{name}")
+            }
+            DISTORTION_MODEL_PARAMETER => DISTORTION_MODEL_POINTER.to_owned(),
             "method" | "initial_z_mm" | "gain" | "tolerance_mm" | "max_iterations" | "trace"
             | "corner_sigma_px" => format!("/solver/{name}"),
             _ => format!("/{name}"),
@@ -270,6 +296,9 @@ impl ImageQuery {
         }
         if pointer == CAMERA_ID_POINTER {
             return Some(CAMERA_ID_PARAMETER.to_owned());
+        }
+        if pointer == DISTORTION_MODEL_POINTER {
+            return Some(DISTORTION_MODEL_PARAMETER.to_owned());
         }
         let last = pointer.rsplit('/').next()?;
         Self::parameter_names()
@@ -311,6 +340,10 @@ mod tests {
             k3: Some(0.5),
             p1: Some(0.5),
             p2: Some(0.5),
+            distortion_model: Some(DistortionModelDto::RationalPolynomial),
+            k4: Some(0.5),
+            k5: Some(0.5),
+            k6: Some(0.5),
             marker_size_mm: Some(1.0),
             method: Some(MethodDto::Paper),
             detector: Some(DetectorDto::Rqrr),
@@ -384,6 +417,8 @@ mod tests {
         let cases = [
             (Some("/camera/fx_px"), Some("fx_px")),
             (Some("/camera/distortion/k1"), Some("k1")),
+            (Some("/camera/distortion/k6"), Some("k6")),
+            (Some("/camera/distortion/model"), Some("distortion_model")),
             (Some("/marker/size_mm"), Some("marker_size_mm")),
             (Some("/marker"), Some("marker_size_mm")),
             (Some("/camera/id"), Some("camera_id")),
@@ -399,5 +434,30 @@ mod tests {
             let renamed = ImageQuery::problem_in_query_terms(problem);
             assert_eq!(renamed.field.as_deref(), expected, "{field:?}");
         }
+    }
+
+    /// Every lens model can be sent as query parameters: the flat form carries what the
+    /// JSON form's `camera.distortion` does.
+    #[test]
+    fn a_fisheye_camera_comes_through_the_query() {
+        let query: ImageQuery = serde_urlencoded::from_str(
+            "fx_px=420&fy_px=420&cx_px=639.5&cy_px=399.5&marker_size_mm=50\
+             &distortion_model=equidistant&k1=-0.0057&k2=0.0419&k3=-0.0387&k4=0.0067",
+        )
+        .expect("parses");
+        let request = query.into_request().expect("a request");
+        let distortion = request.camera.distortion.expect("a lens");
+        assert_eq!(distortion.model, Some(DistortionModelDto::Equidistant));
+        assert_eq!(
+            [distortion.k1, distortion.k2, distortion.k3, distortion.k4],
+            [-0.0057, 0.0419, -0.0387, 0.0067]
+        );
+        let lens = distortion
+            .to_distortion("/camera")
+            .expect("a valid fisheye");
+        assert_eq!(
+            lens.model(),
+            crate::geometry::distortion::DistortionModel::Equidistant
+        );
     }
 }
