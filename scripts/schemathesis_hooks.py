@@ -53,7 +53,9 @@ negative data, and its 200 would fail `negative_data_rejection`).
    start (a site camera by `camera_id`; the sensor form when it has `focal_length_mm` or
    `pixel_size_um` and no `fx_px`/`fy_px`; else the pixel form), missing values taken from
    the rendered photos' camera (1000 px, 639.5, 359.5; 4 mm over 4 µm), the parameters of
-   the other forms dropped; without a site a missing `marker_size_mm` is 50.
+   the other forms dropped; without a site a missing `marker_size_mm` is 50. The lens
+   model's coefficients likewise: a coefficient the query's `distortion_model` does not have
+   is dropped (the JSON form says it with `const: 0`, flat parameters cannot).
 5. The paper's iteration (Eq. 12) settles only on axis and square on: off axis or tilted the
    true depths repel it (docs/paper-reproduction.md, "Why the printed method falls short"),
    and a gain above 1 overshoots; it then drifts until the solved corners are collinear
@@ -96,6 +98,12 @@ MIN_MAGNITUDE = 1e-2
 MAX_MAGNITUDE = 1e4
 MAX_DISTORTION = 1e-2
 _DISTORTION = {"k1", "k2", "k3", "k4", "k5", "k6", "p1", "p2"}
+# The coefficients each lens model has (docs/calibration.md).
+_MODEL_COEFFICIENTS = {
+    "plumb_bob": {"k1", "k2", "p1", "p2", "k3"},
+    "rational_polynomial": _DISTORTION,
+    "equidistant": {"k1", "k2", "k3", "k4"},
+}
 _CORNERS = "/v1/pose/corners"
 _IMAGE_ROUTES = ("/v1/pose/image", "/v1/pose/image/annotated")
 _CALIBRATE = "/v1/calibrate"
@@ -268,7 +276,7 @@ def _complete_raw_camera(query):
     """The query's camera completed into the one form its parameters start (rule 4)."""
     if _site is not None and "camera_id" in query:
         query["camera_id"] = _known_camera_id(query["camera_id"])
-        for name in _PIXEL_FORM + _SENSOR_FORM + tuple(_DISTORTION):
+        for name in _PIXEL_FORM + _SENSOR_FORM + tuple(_DISTORTION) + ("distortion_model",):
             query.pop(name, None)
         return
     query.pop("camera_id", None)
@@ -297,6 +305,11 @@ def _map_image_query(query, part):
     """Rules 1, 4 and 5 for the query of an image route; `part` is the multipart `request`
     part, None for a raw body."""
     query = _within_range(dict(query))
+    # The lens model takes only its own coefficients (the JSON form's `const: 0`; flat
+    # parameters cannot say it): the others are dropped.
+    model = query.get("distortion_model", "plumb_bob")
+    for name in _DISTORTION - _MODEL_COEFFICIENTS.get(model, _DISTORTION):
+        query.pop(name, None)
     if part is None:
         _complete_raw_camera(query)
     points, method = _read_points_and_method(query, part or {})
