@@ -308,6 +308,7 @@ def _map_image_query(query, part):
     # The lens model takes only its own coefficients (the JSON form's `const: 0`; flat
     # parameters cannot say it): the others are dropped.
     model = query.get("distortion_model", "plumb_bob")
+    model = model if isinstance(model, str) else None
     for name in _DISTORTION - _MODEL_COEFFICIENTS.get(model, _DISTORTION):
         query.pop(name, None)
     if part is None:
