@@ -92,6 +92,7 @@ pub struct ImageForm {
             `request` part. Codes: `undecodable_image` (not a JPEG or PNG, corrupt, \
             truncated, empty), `detector_unavailable` (`zxing-cpp` in a build without it), \
             `points_need_reprojection` (`points = finders` with another method), \
+            `invalid_detection_budget` (a `max_detect_ms` that is not positive), \
             `missing_field` (`marker_size_mm`, or the part `image` or `request`), \
             `unknown_field`, `invalid_type`, `unknown_variant`, `non_finite_number`, \
             `incomplete_camera`, `invalid_camera_parameter`, `invalid_marker_size`, \
