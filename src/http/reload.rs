@@ -27,19 +27,24 @@ impl<T: Clone> Reloadable<T> {
         T::clone(&self.current.load())
     }
 
-    /// Loads a new value with `load` and, when it succeeds, swaps it in; blocking while
-    /// another reload runs. On failure the value in use stays.
+    /// Loads with `load` and, when it succeeds, swaps in what `stored` makes of the loaded
+    /// value (a site kept as `Some(site)`, say); blocking while another reload runs. On
+    /// failure the value in use stays.
     ///
     /// # Errors
     /// `load`'s error.
-    pub fn reload<E>(&self, load: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
+    pub fn reload<U, E>(
+        &self,
+        load: impl FnOnce() -> Result<U, E>,
+        stored: impl FnOnce(&U) -> T,
+    ) -> Result<U, E> {
         let _one_at_a_time = self
             .reloading
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
-        let value = load()?;
-        self.current.store(std::sync::Arc::new(value.clone()));
-        Ok(value)
+        let loaded = load()?;
+        self.current.store(std::sync::Arc::new(stored(&loaded)));
+        Ok(loaded)
     }
 }
 
@@ -53,8 +58,8 @@ mod tests {
         let store = Reloadable::new(Some(Arc::new(1)));
         let before = store.get();
         assert_eq!(
-            store.reload(|| Ok::<_, ()>(Some(Arc::new(2)))),
-            Ok(Some(Arc::new(2)))
+            store.reload(|| Ok::<_, ()>(Arc::new(2)), |n| Some(Arc::clone(n))),
+            Ok(Arc::new(2))
         );
         assert_eq!(store.get(), Some(Arc::new(2)));
         assert_eq!(
@@ -63,7 +68,7 @@ mod tests {
             "a snapshot taken before stays whole"
         );
         assert_eq!(
-            store.reload(|| Err::<Option<Arc<i32>>, _>("refused")),
+            store.reload(|| Err::<Arc<i32>, _>("refused"), |n| Some(Arc::clone(n))),
             Err("refused")
         );
         assert_eq!(store.get(), Some(Arc::new(2)));
@@ -77,12 +82,15 @@ mod tests {
             .map(|n| {
                 let (store, inside) = (Arc::clone(&store), Arc::clone(&inside));
                 std::thread::spawn(move || {
-                    store.reload(|| {
-                        let was = inside.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-                        std::thread::sleep(std::time::Duration::from_millis(2));
-                        inside.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
-                        if was == 0 { Ok(n) } else { Err(was) }
-                    })
+                    store.reload(
+                        || {
+                            let was = inside.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                            std::thread::sleep(std::time::Duration::from_millis(2));
+                            inside.fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+                            if was == 0 { Ok(n) } else { Err(was) }
+                        },
+                        |n| *n,
+                    )
                 })
             })
             .collect();

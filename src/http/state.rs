@@ -89,11 +89,8 @@ impl SiteStore {
     /// [`ReloadError`]; the site loaded before stays in use.
     pub fn reload(&self) -> Result<Arc<Site>, ReloadError> {
         let path = self.path.as_deref().ok_or(ReloadError::NoSite)?;
-        let loaded = self
-            .current
-            .reload(|| Ok::<_, ReloadError>(Some(Arc::new(Site::load(path)?))))?;
-        // Always a site: the loader above gives one or fails.
-        loaded.ok_or(ReloadError::NoSite)
+        let load = || Site::load(path).map(Arc::new);
+        Ok(self.current.reload(load, |site| Some(Arc::clone(site)))?)
     }
 }
 

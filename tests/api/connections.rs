@@ -272,8 +272,7 @@ async fn at_the_limit_a_connection_with_a_request_in_progress_is_never_closed() 
     crate::helpers::queue_reaches(&app, 1, 1).await;
 
     // Act: another client waits in the listen backlog instead of displacing it.
-    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
-    let _ = rustls::crypto::ring::default_provider().install_default();
+    crate::support::tls_provider();
     let other = reqwest::Client::builder()
         .no_proxy()
         .timeout(Duration::from_millis(500))
@@ -293,8 +292,7 @@ async fn at_the_limit_a_connection_with_a_request_in_progress_is_never_closed() 
             .closed_count(CloseReason::Evicted),
         0
     );
-    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
-    let _ = rustls::crypto::ring::default_provider().install_default();
+    crate::support::tls_provider();
     let fresh = reqwest::Client::builder()
         .no_proxy()
         .build()

@@ -231,3 +231,45 @@ async fn sends_a_bearer_token_from_the_environment_or_a_file() {
     assert!(by_file.status.success(), "{by_file:?}");
     assert_eq!(smuggled.status.code(), Some(1), "{smuggled:?}");
 }
+
+/// Over TLS with the service's own certificate pinned, a token reaches a protected URL: it
+/// goes out after a tokenless request on a connection whose certificate was checked; with
+/// another certificate pinned nothing is answered 200.
+#[tokio::test]
+async fn a_token_reaches_a_protected_url_over_a_pinned_certificate() {
+    // Arrange: TLS and an auth file with a client allowed to read the metrics.
+    let pki = Pki::new("healthcheck-pinned-token");
+    let dir = dir("healthcheck-pinned-token");
+    let files = write_files(&dir, &pki.leaf(&["localhost"]), None);
+    let other = dir.join("other.pem");
+    std::fs::write(&other, pki.leaf(&["localhost"]).cert_pem).expect("written");
+    let token = new_token();
+    let auth_file = dir.join("auth.yaml");
+    let entry = entry_line("probe", &token, [Scope::Metrics].into_iter().collect());
+    std::fs::write(&auth_file, format!("clients:\n{entry}\n")).expect("written");
+    let app = spawn_app_with(Settings {
+        security: SecuritySettings {
+            auth_file: Some(auth_file),
+            tls: Some(files.clone()),
+        },
+        ..Settings::default()
+    })
+    .await;
+    let metrics = format!("https://{}/metrics", authority(&app));
+    let token_env = [("QRPOSE_HEALTHCHECK_TOKEN", token.as_str())];
+
+    // Act
+    let pinned = ["--url", metrics.as_str(), "--tls-cert", path(&files.cert)];
+    let with_token = healthcheck_with(&pinned, &token_env).await;
+    let without = healthcheck(&pinned).await;
+    let wrong = ["--url", metrics.as_str(), "--tls-cert", path(&other)];
+    let wrong_pin = healthcheck_with(&wrong, &token_env).await;
+
+    // Assert
+    assert!(with_token.status.success(), "{with_token:?}");
+    assert_eq!(without.status.code(), Some(1), "{without:?}");
+    assert!(String::from_utf8_lossy(&without.stderr).contains("401"));
+    assert_eq!(wrong_pin.status.code(), Some(1), "{wrong_pin:?}");
+    let stderr = String::from_utf8_lossy(&wrong_pin.stderr);
+    assert!(stderr.contains("another certificate"), "{stderr}");
+}

@@ -55,8 +55,7 @@ pub async fn spawn_app_with(settings: Settings) -> TestApp {
         state.clone(),
         shutdown.clone().cancelled_owned(),
     ));
-    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
-    let _ = rustls::crypto::ring::default_provider().install_default();
+    crate::support::tls_provider();
     let client = reqwest::Client::builder()
         .no_proxy()
         .build()

@@ -3,6 +3,8 @@
 //! or describe the server.
 
 mod helpers;
+#[path = "../support/mod.rs"]
+mod support;
 
 mod auth;
 mod calibrate;

@@ -29,8 +29,7 @@ async fn in_flight_requests_finish_after_shutdown_begins() {
     assert_eq!(response.status(), StatusCode::OK);
     let address = app.address.clone();
     app.stopped().await.expect("a clean stop");
-    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
-    let _ = rustls::crypto::ring::default_provider().install_default();
+    crate::support::tls_provider();
     let refused = reqwest::Client::builder()
         .no_proxy()
         .build()

@@ -109,8 +109,7 @@ impl Browser {
             .stderr(Stdio::null())
             .spawn()
             .expect("chromedriver starts");
-        // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
-        let _ = rustls::crypto::ring::default_provider().install_default();
+        super::support::tls_provider();
         let client = reqwest::blocking::Client::builder()
             .no_proxy()
             .timeout(Duration::from_secs(60))

@@ -234,3 +234,27 @@ fn an_out_of_range_flag_names_the_flag_not_a_json_pointer() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `qrpose openapi --auth` and `qrpose asyncapi --auth` print the documents of a server with
+/// an auth file (the bearer scheme and each operation's scope); without the flag, a server's
+/// without one.
+#[test]
+fn the_documents_declare_the_bearer_scheme_only_with_auth() {
+    for command in ["openapi", "asyncapi"] {
+        let open = run(&[command], None);
+        let guarded = run(&[command, "--auth"], None);
+        assert!(
+            open.status.success() && guarded.status.success(),
+            "{command}"
+        );
+        let (open, guarded) = (json(&open.stdout), json(&guarded.stdout));
+        assert!(
+            open["components"].get("securitySchemes").is_none(),
+            "{command}"
+        );
+        assert_eq!(
+            guarded["components"]["securitySchemes"]["bearer"]["scheme"], "bearer",
+            "{command}"
+        );
+    }
+}

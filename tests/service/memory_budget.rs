@@ -39,8 +39,7 @@ fn status_bytes(server: &Server, field: &str) -> u64 {
 
 /// `POST /v1/pose/image?query` with `body`: the status and the body of the answer.
 fn post(server: &Server, body: Vec<u8>, content_type: &str, query: &str) -> (u16, String) {
-    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
-    let _ = rustls::crypto::ring::default_provider().install_default();
+    crate::support::tls_provider();
     let response = reqwest::blocking::Client::builder()
         .timeout(PATIENCE)
         .build()

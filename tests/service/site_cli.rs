@@ -176,8 +176,7 @@ fn estimate_with_an_unknown_camera_id_is_refused_with_exit_2() {
 
 /// Polls `url` until `done` holds for its body, for at most ten seconds.
 fn poll_until(url: &str, done: impl Fn(&str) -> bool) -> String {
-    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
-    let _ = rustls::crypto::ring::default_provider().install_default();
+    crate::support::tls_provider();
     let client = reqwest::blocking::Client::builder()
         .no_proxy()
         .build()

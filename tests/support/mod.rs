@@ -1,6 +1,6 @@
-//! Shared by the tests that run the real binary (`annotated`, `browser`, `memory_budget`,
-//! `curl_suite`, `fd_exhaustion`): `qrpose serve` on a free port, its first stdout line, and
-//! photos made by `qrpose-sim render` (in this process) with their ground truth.
+//! Shared by the test binaries (`service`, `browser`, and `api` for its TLS provider):
+//! `qrpose serve` on a free port, its first stdout line, photos made by `qrpose-sim render`
+//! (in this process) with their ground truth, and reqwest clients.
 
 #![allow(dead_code)]
 
@@ -130,10 +130,15 @@ pub fn render_photo(dir: &Path, out: &str, pose_args: &[&str]) -> (PathBuf, Valu
     (path, truth)
 }
 
+/// Installs the service's TLS provider, ring, for reqwest's clients: the package builds
+/// reqwest with TLS for `qrpose healthcheck` but without a provider of its own.
+pub fn tls_provider() {
+    let _ = rustls::crypto::ring::default_provider().install_default();
+}
+
 /// A blocking client that never uses a proxy.
 pub fn client() -> reqwest::blocking::Client {
-    // reqwest's TLS (for `qrpose healthcheck`) takes the service's provider, ring.
-    let _ = rustls::crypto::ring::default_provider().install_default();
+    tls_provider();
     reqwest::blocking::Client::builder()
         .no_proxy()
         .timeout(Duration::from_secs(60))

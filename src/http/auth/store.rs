@@ -85,12 +85,13 @@ impl AuthStore {
     /// [`AuthReloadError`]; the clients loaded before stay in use.
     pub fn reload(&self) -> Result<Arc<Clients>, AuthReloadError> {
         let file = self.0.file.as_deref().ok_or(AuthReloadError::NoFile)?;
-        let loaded = self
+        let load = || Clients::load(file).map(Arc::new);
+        match self
             .0
             .current
-            .reload(|| Clients::load(file).map(|clients| Some(Arc::new(clients))));
-        match loaded.map(|clients| clients.ok_or(AuthReloadError::NoFile)) {
-            Ok(Ok(clients)) => {
+            .reload(load, |clients| Some(Arc::clone(clients)))
+        {
+            Ok(clients) => {
                 self.0.metrics.clients.set(gauge_value(&clients));
                 self.0.metrics.observe_auth_reload(true);
                 tracing::info!(
@@ -101,7 +102,6 @@ impl AuthStore {
                 );
                 Ok(clients)
             }
-            Ok(Err(e)) => Err(e),
             Err(e) => {
                 self.0.metrics.observe_auth_reload(false);
                 tracing::warn!(error = %e, "auth file reload refused; the clients loaded before stay in use");

@@ -165,9 +165,8 @@ impl TlsStore {
     /// # Errors
     /// [`TlsError`]; the configuration in use stays.
     pub fn reload(&self) -> Result<(), TlsError> {
-        let loaded = (self.0.current)
-            .reload(|| server_config(&self.0.files).map(|c| TlsAcceptor::from(Arc::new(c))));
-        match loaded {
+        let load = || server_config(&self.0.files).map(|c| TlsAcceptor::from(Arc::new(c)));
+        match self.0.current.reload(load, TlsAcceptor::clone) {
             Ok(_) => {
                 self.0.metrics.observe_tls_reload(true);
                 tracing::info!(cert = %self.0.files.cert.display(), "TLS certificate reloaded");
