@@ -506,14 +506,12 @@ async function loadSite() {
     const entries = Array.isArray(cameras) ? cameras.map((c) => [c.id, c]) : Object.entries(cameras);
     state.siteCameras = {};
     for (const [id, c] of entries) {
-      const k = c.intrinsics || c;
-      // The page projects with plumb_bob only; other lenses get no axes here (the
-      // annotated image of the server draws them with any model).
-      const model = c.distortion && c.distortion.model;
-      if (k && k.fx_px > 0 && (!model || model === "plumb_bob")) {
-        const d = (c.distortion && (c.distortion.coefficients || c.distortion)) || {};
-        const coeff = Array.isArray(d) ? { k1: d[0], k2: d[1], p1: d[2], p2: d[3], k3: d[4] } : d;
-        state.siteCameras[id] = { fx: k.fx_px, fy: k.fy_px, cx: k.cx_px, cy: k.cy_px, distortion: coeff };
+      // The camera as a pose request takes it. The page projects with plumb_bob only;
+      // other lenses get no axes here (the annotated image of the server draws them).
+      const k = c.camera || {};
+      const d = k.distortion || {};
+      if (k.fx_px > 0 && (!d.model || d.model === "plumb_bob")) {
+        state.siteCameras[id] = { fx: k.fx_px, fy: k.fy_px, cx: k.cx_px, cy: k.cy_px, distortion: d };
       }
       $("camera-ids").append(el("option", { value: id }));
     }

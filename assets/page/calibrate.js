@@ -143,10 +143,9 @@ function cameraList(answer) {
   const model = c.distortion.model;
   dl.append(el("dt", {}, "lens model"), el("dd", { "data-field": "model" }, model));
   const names = COEFFICIENTS[model] || [];
-  c.distortion.coefficients.forEach((value, k) => {
-    const name = names[k] || "c" + k;
-    parameterRow(dl, "distortion." + name, name, value, s.coefficients[k], 5, "");
-  });
+  for (const name of names) {
+    parameterRow(dl, "distortion." + name, name, c.distortion[name] || 0, s.distortion[name], 5, "");
+  }
   const rms = answer.reprojection_rms_px;
   dl.append(el("dt", {}, "reprojection RMS"),
     el("dd", { "data-field": "reprojection_rms_px", "data-value": String(rms) }, fixed(rms, 3) + " px"));

@@ -2,23 +2,24 @@
 //! `image`, the [`CalibrateRequest`] as the part `request`) and `qrpose calibrate`, both
 //! through [`respond`], so their JSON is the same field for field.
 //!
-//! The answer ([`CalibrateResponse`]) carries the camera in the pose requests' pixel form
-//! with its distortion model and coefficients, one standard deviation per parameter, every
+//! The answer ([`CalibrateResponse`]) carries the camera as a pose request takes it (pixel
+//! form, the distortion's model and named coefficients), one standard deviation per parameter, every
 //! photo's view (used or why not, with each point's measurement, residual and robust
 //! weight), the warnings, the image coverage and the two calibration files the site file
 //! reads as they are (`opencv_yaml`, `ros_camera_info_yaml`; docs/calibration.md).
 
-use super::camera::DistortionModelDto;
+use super::camera::{CameraDto, DistortionModelDto};
 use super::image::response::ImageSizeDto;
 use super::problem::Problem;
 use super::refusal::problem_from_calibrate_error;
 use super::request::MarkerDto;
 use crate::app::{CalibrateAnswer, CalibrateSetup, ImageLimits, PhotoReport, calibrate_photos};
 use crate::detect::CancelFlag;
-use crate::geometry::camera::{Camera, DistortionModel};
+use crate::geometry::camera::DistortionModel;
 use qrpose_calib::{ViewReport, Warning};
 use qrpose_site::calibration::{opencv_yaml, ros_camera_info_yaml};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use utoipa::ToSchema;
 
 /// The `camera_name` of the ROS file written.
@@ -63,31 +64,6 @@ impl From<DistortionModel> for DistortionModelDto {
     }
 }
 
-/// A lens model and its coefficients, in OpenCV's order.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct CalibratedDistortionDto {
-    /// The model.
-    pub model: DistortionModelDto,
-    /// `plumb_bob`: k1 k2 p1 p2 k3; `rational_polynomial`: k1 k2 p1 p2 k3 k4 k5 k6;
-    /// `equidistant`: k1 k2 k3 k4.
-    pub coefficients: Vec<f64>,
-}
-
-/// The calibrated camera, in the pixel form of the pose requests.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct CalibratedCameraDto {
-    /// Focal length along u, px.
-    pub fx_px: f64,
-    /// Focal length along v, px.
-    pub fy_px: f64,
-    /// Principal point u, px (docs/conventions.md, Pixels).
-    pub cx_px: f64,
-    /// Principal point v, px.
-    pub cy_px: f64,
-    /// The lens.
-    pub distortion: CalibratedDistortionDto,
-}
-
 /// One standard deviation of each parameter, from the covariance at the solution; null
 /// where the photos leave the parameter undetermined.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -100,8 +76,9 @@ pub struct CalibrationStdDto {
     pub cx_px: Option<f64>,
     /// Of cy, px.
     pub cy_px: Option<f64>,
-    /// Of each distortion coefficient, in the model's order.
-    pub coefficients: Vec<Option<f64>>,
+    /// Of each distortion coefficient of the model, by the name `camera.distortion` gives
+    /// it (`k1`, `p1`, …).
+    pub distortion: BTreeMap<String, Option<f64>>,
 }
 
 /// One calibration point of a photo: where it was measured and, under the fit, its residual
@@ -216,7 +193,7 @@ pub struct CalibrationTimingDto {
 pub struct CalibrateResponse {
     /// The camera: use it as it is in a pose request's `camera`, or through the files below
     /// in a site file.
-    pub camera: CalibratedCameraDto,
+    pub camera: CameraDto,
     /// One standard deviation of each parameter.
     pub std: CalibrationStdDto,
     /// RMS of the residual lengths over every point of the used views, px.
@@ -243,20 +220,6 @@ pub struct CalibrateResponse {
 /// A finite number, or null.
 fn finite(x: f64) -> Option<f64> {
     x.is_finite().then_some(x)
-}
-
-fn camera_dto(camera: &Camera) -> CalibratedCameraDto {
-    let lens = camera.distortion();
-    CalibratedCameraDto {
-        fx_px: camera.fx(),
-        fy_px: camera.fy(),
-        cx_px: camera.cx(),
-        cy_px: camera.cy(),
-        distortion: CalibratedDistortionDto {
-            model: lens.model().into(),
-            coefficients: lens.coefficients(),
-        },
-    }
 }
 
 /// A photo's view on the wire: from its calibration view when it gave one.
@@ -320,13 +283,21 @@ impl From<&CalibrateAnswer> for CalibrateResponse {
         let size = c.image_size;
         let std = &c.std;
         CalibrateResponse {
-            camera: camera_dto(&c.camera),
+            camera: CameraDto::from(&c.camera),
             std: CalibrationStdDto {
                 fx_px: finite(std.fx_px),
                 fy_px: finite(std.fy_px),
                 cx_px: finite(std.cx_px),
                 cy_px: finite(std.cy_px),
-                coefficients: std.coefficients.iter().map(|s| finite(*s)).collect(),
+                distortion: c
+                    .camera
+                    .distortion()
+                    .model()
+                    .params()
+                    .iter()
+                    .zip(&std.coefficients)
+                    .map(|(param, s)| (param.name().to_owned(), finite(*s)))
+                    .collect(),
             },
             reprojection_rms_px: c.reprojection_rms_px,
             image: ImageSizeDto {

@@ -136,6 +136,9 @@ impl DistortionDto {
 /// cy_px`, so fx = fy = focal length / pixel size); or, with `corners_mm` only, the paper's
 /// image plane (`focal_length_mm`, plus optionally `pixel_size_um` to get pixel diagnostics);
 /// or, with a site loaded, by `id` alone.
+///
+/// Answers that give a camera (`POST /v1/calibrate`, `GET /v1/site`) give it in this shape,
+/// pixel form, so that a request takes it as it is.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CameraDto {
@@ -143,28 +146,75 @@ pub struct CameraDto {
     /// other field: its calibration, distortion and mount come from the site
     /// (`docs/site.md`).
     #[schema(min_length = 1)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub id: Option<String>,
     /// Horizontal focal length, px.
     #[schema(example = 1000.0, exclusive_minimum = 0)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub fx_px: Option<f64>,
     /// Vertical focal length, px.
     #[schema(example = 1000.0, exclusive_minimum = 0)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub fy_px: Option<f64>,
     /// Principal point, horizontal, px (pixel centres are integers: the image centre of a
     /// 1280-px-wide image is 639.5).
     #[schema(example = 639.5)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub cx_px: Option<f64>,
     /// Principal point, vertical, px.
     #[schema(example = 359.5)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub cy_px: Option<f64>,
     /// Lens focal length, mm (sensor or paper form).
     #[schema(exclusive_minimum = 0)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub focal_length_mm: Option<f64>,
     /// Pixel pitch, µm (sensor form).
     #[schema(exclusive_minimum = 0)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub pixel_size_um: Option<f64>,
     /// Lens distortion of the corner pixels; none when omitted.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub distortion: Option<DistortionDto>,
+}
+
+impl From<&Distortion> for DistortionDto {
+    /// The named coefficients of `lens`, its model always written.
+    fn from(lens: &Distortion) -> Self {
+        let model = lens.model();
+        let mut dto = Self {
+            model: Some(model.into()),
+            ..Self::default()
+        };
+        for (param, value) in model.params().iter().zip(lens.coefficients()) {
+            match param {
+                CameraParam::K1 => dto.k1 = value,
+                CameraParam::K2 => dto.k2 = value,
+                CameraParam::P1 => dto.p1 = value,
+                CameraParam::P2 => dto.p2 = value,
+                CameraParam::K3 => dto.k3 = value,
+                CameraParam::K4 => dto.k4 = value,
+                CameraParam::K5 => dto.k5 = value,
+                CameraParam::K6 => dto.k6 = value,
+                _ => {}
+            }
+        }
+        dto
+    }
+}
+
+impl From<&Camera> for CameraDto {
+    /// The pixel form of `camera`, with its lens: what a pose request takes as it is.
+    fn from(camera: &Camera) -> Self {
+        Self {
+            fx_px: Some(camera.fx()),
+            fy_px: Some(camera.fy()),
+            cx_px: Some(camera.cx()),
+            cy_px: Some(camera.cy()),
+            distortion: Some(DistortionDto::from(camera.distortion())),
+            ..Self::default()
+        }
+    }
 }
 
 fn incomplete(detail: impl Into<String>, field: impl Into<String>) -> Problem {
@@ -320,6 +370,43 @@ mod tests {
         let problem = dto.to_distortion("/camera").expect_err("NaN");
         assert_eq!(problem.code, ErrorCode::NonFiniteNumber);
         assert_eq!(problem.field.as_deref(), Some("/camera/distortion/k5"));
+    }
+
+    #[test]
+    fn a_camera_written_as_an_answer_reads_back_as_the_same_camera() {
+        let lenses = [
+            Distortion::from_coefficients(
+                DistortionModel::PlumbBob,
+                &[-0.1, 0.02, 1e-3, -2e-3, 0.005],
+            ),
+            Distortion::from_coefficients(
+                DistortionModel::RationalPolynomial,
+                &[0.1, 0.2, 0.003, 0.004, 0.5, 0.6, 0.7, 0.8],
+            ),
+            Distortion::from_coefficients(
+                DistortionModel::Equidistant,
+                &[0.1, -0.02, 0.003, -4e-4],
+            ),
+        ];
+        for lens in lenses {
+            let lens = lens.expect("valid coefficients");
+            let camera = Camera::from_pixels(900.0, 905.0, 640.5, 360.25)
+                .expect("valid intrinsics")
+                .with_distortion(lens.clone());
+            let wire = serde_json::to_value(CameraDto::from(&camera)).expect("serialises");
+            let back: CameraDto = serde_json::from_value(wire.clone()).expect("a request camera");
+            let (read, scale) = back.to_camera(CornersUnit::Px).expect("valid");
+            assert_eq!(scale, None);
+            assert_eq!(read.distortion(), &lens, "{wire}");
+            assert_eq!(
+                [read.fx(), read.fy(), read.cx(), read.cy()],
+                [900.0, 905.0, 640.5, 360.25]
+            );
+            assert!(
+                wire.get("id").is_none() && wire.get("focal_length_mm").is_none(),
+                "{wire}"
+            );
+        }
     }
 
     #[test]

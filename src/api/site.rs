@@ -2,6 +2,7 @@
 //! `qrpose site check` print (`docs/site.md`). Every value is the resolved one: a camera from
 //! a calibration file shows the intrinsics read from it, a quaternion is shown normalised.
 
+use super::camera::CameraDto;
 use crate::geometry::euler::quaternion_wxyz;
 use qrpose_site::calibration::CalibrationFormat;
 use qrpose_site::file::Matcher;
@@ -29,30 +30,6 @@ impl From<&Rigid> for RigidDto {
     }
 }
 
-/// Pinhole intrinsics, px.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct IntrinsicsDto {
-    /// Horizontal focal length, px.
-    pub fx_px: f64,
-    /// Vertical focal length, px.
-    pub fy_px: f64,
-    /// Principal point, px.
-    pub cx_px: f64,
-    /// Principal point, px.
-    pub cy_px: f64,
-}
-
-/// A lens distortion: its model and coefficients in OpenCV's order.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct SiteDistortionDto {
-    /// `plumb_bob`, `rational_polynomial` or `equidistant`.
-    #[schema(example = "plumb_bob")]
-    pub model: String,
-    /// The coefficients (plumb_bob: k1 k2 p1 p2 k3; rational_polynomial: k1 k2 p1 p2 k3 k4
-    /// k5 k6; equidistant: k1 k2 k3 k4).
-    pub coefficients: Vec<f64>,
-}
-
 /// The calibration file a camera was read from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct CalibrationFileDto {
@@ -70,10 +47,8 @@ pub struct CalibrationFileDto {
 pub struct SiteCameraDto {
     /// The calibration file, or null for inline intrinsics.
     pub calibration: Option<CalibrationFileDto>,
-    /// The intrinsics in use.
-    pub intrinsics: IntrinsicsDto,
-    /// The distortion in use.
-    pub distortion: SiteDistortionDto,
+    /// The camera in use (its intrinsics and lens), as a pose request's `camera` takes it.
+    pub camera: CameraDto,
     /// The calibrated image size [width, height], px, when the calibration file gives it.
     pub image_size_px: Option<[u32; 2]>,
     /// The camera's pose in the robot frame (p_robot = R·p_camera + t), or null.
@@ -154,16 +129,7 @@ impl From<&SiteCamera> for SiteCameraDto {
                 }),
                 CameraSource::Inline { .. } => None,
             },
-            intrinsics: IntrinsicsDto {
-                fx_px: cam.fx(),
-                fy_px: cam.fy(),
-                cx_px: cam.cx(),
-                cy_px: cam.cy(),
-            },
-            distortion: SiteDistortionDto {
-                model: cam.distortion().model().name().to_owned(),
-                coefficients: cam.distortion().coefficients(),
-            },
+            camera: CameraDto::from(cam),
             image_size_px: c.image_size_px.map(|(w, h)| [w, h]),
             mount: c.mount.as_ref().map(RigidDto::from),
         }

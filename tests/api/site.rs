@@ -148,10 +148,7 @@ async fn get_site_answers_what_is_loaded_with_the_files_sha256() {
     let body: Value = response.json().await.expect("JSON");
     let bytes = std::fs::read(dir.join("warehouse.yaml")).expect("read");
     assert_eq!(body["sha256"], json!(qrpose_site::site::sha256_hex(&bytes)));
-    assert_eq!(
-        body["cameras"]["front"]["intrinsics"]["fx_px"],
-        json!(1000.0)
-    );
+    assert_eq!(body["cameras"]["front"]["camera"]["fx_px"], json!(1000.0));
     assert_eq!(
         body["cameras"]["rear"]["calibration"]["format"],
         json!("ros_camera_info")
@@ -161,6 +158,22 @@ async fn get_site_answers_what_is_loaded_with_the_files_sha256() {
         json!("^LOC-[0-9]{4}$")
     );
     assert_eq!(body["map"][1]["payload"], json!("LOC-0002"));
+    // Each camera is shown as a pose request takes it: sent as it is, it gives the pose the
+    // camera's id gives.
+    for id in ["front", "rear"] {
+        let by_id = json!({
+            "corners_px": [[300, 200], [360, 202], [358, 262], [298, 260]],
+            "camera": {"id": id},
+            "marker": {"size_mm": 80},
+        });
+        let mut inline = by_id.clone();
+        inline["camera"] = body["cameras"][id]["camera"].clone();
+        let a: Value = app.post_corners(&by_id).await.json().await.expect("JSON");
+        let b: Value = app.post_corners(&inline).await.json().await.expect("JSON");
+        assert!(a["position_mm"].is_object(), "{a}");
+        assert_eq!(a["position_mm"], b["position_mm"], "{id}: {b}");
+        assert_eq!(a["rotation"], b["rotation"], "{id}");
+    }
 }
 
 #[tokio::test]

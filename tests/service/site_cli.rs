@@ -48,8 +48,8 @@ fn site_check_prints_what_the_file_resolves_to() {
     let bytes = std::fs::read(fixture("warehouse.yaml")).expect("read");
     assert_eq!(v["sha256"], qrpose_site::site::sha256_hex(&bytes));
     assert_eq!(v["cameras"]["front"]["calibration"]["format"], "opencv");
-    assert_eq!(v["cameras"]["front"]["intrinsics"]["fx_px"], 1000.0);
-    assert_eq!(v["cameras"]["rear"]["distortion"]["coefficients"][0], -0.04);
+    assert_eq!(v["cameras"]["front"]["camera"]["fx_px"], 1000.0);
+    assert_eq!(v["cameras"]["rear"]["camera"]["distortion"]["k1"], -0.04);
     assert_eq!(v["markers"]["default_size_mm"], 50.0);
     assert_eq!(v["map"].as_array().map(Vec::len), Some(2));
 }
