@@ -24,6 +24,7 @@
 //! | `calibrate` | input checks, dropping views that do not fit, standard deviations, assembly |
 //! | [`warnings`] | the warnings, their thresholds, the image coverage |
 //! | [`compare`] | the distortion-field difference of two cameras, px |
+//! | [`handeye`] | hand-eye calibration: a camera's mount on a robot from photos of a code and the flange poses (`docs/hand-eye.md`) |
 //!
 //! Conventions: pixels as in `docs/conventions.md` (u right, v down, integer coordinates at
 //! pixel centres); camera frame x right, y down, z forward; poses `p_cam = R·p_target + t`,
@@ -42,6 +43,7 @@ mod distortion_init;
 mod error;
 mod fisheye_init;
 mod fit;
+pub mod handeye;
 mod input;
 mod lens;
 mod lm;
