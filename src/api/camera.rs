@@ -81,6 +81,24 @@ fn is_zero(value: &f64) -> bool {
 }
 
 impl DistortionDto {
+    /// The named coefficients of `coefficients`, given in `model`'s order (OpenCV's), as
+    /// the command line's `--distortion-coefficients` gives them.
+    ///
+    /// # Errors
+    /// `invalid_camera_parameter` at `/camera/distortion` for a count the model does not
+    /// take or a non-finite coefficient.
+    pub fn from_coefficients(
+        model: DistortionModelDto,
+        coefficients: &[f64],
+    ) -> Result<Self, Problem> {
+        Distortion::from_coefficients(model.into(), coefficients)
+            .map(|lens| Self::from(&lens))
+            .map_err(|e| {
+                Problem::new(ErrorCode::InvalidCameraParameter, e.to_string())
+                    .with_field("/camera/distortion")
+            })
+    }
+
     /// The core distortion these coefficients describe; fields are reported below
     /// `camera_pointer` (`/camera/distortion/k4`).
     ///
@@ -392,7 +410,7 @@ mod tests {
             let lens = lens.expect("valid coefficients");
             let camera = Camera::from_pixels(900.0, 905.0, 640.5, 360.25)
                 .expect("valid intrinsics")
-                .with_distortion(lens.clone());
+                .with_distortion(lens);
             let wire = serde_json::to_value(CameraDto::from(&camera)).expect("serialises");
             let back: CameraDto = serde_json::from_value(wire.clone()).expect("a request camera");
             let (read, scale) = back.to_camera(CornersUnit::Px).expect("valid");

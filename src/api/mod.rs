@@ -15,12 +15,14 @@ pub mod context;
 pub mod corners;
 pub mod finite;
 pub mod frames;
+pub mod hand_eye;
 pub mod image;
 mod integral;
 pub mod problem;
 pub mod refusal;
 pub mod request;
 pub mod response;
+pub mod robot;
 pub mod site;
 pub mod stream;
 

@@ -7,7 +7,7 @@
 
 use super::context::unknown_marker_size;
 use super::problem::{ErrorCode, Problem};
-use crate::app::{CalibrateError, CornersError, ImageError};
+use crate::app::{CalibrateError, CornersError, HandEyeRequestError, ImageError};
 use crate::detect::{
     DetectError,
     decode::DecodeError,
@@ -18,6 +18,7 @@ use crate::geometry::{
     camera::{CameraError, CameraParam},
     quad::QuadError,
 };
+use qrpose_calib::handeye::HandEyeError;
 use qrpose_site::Site;
 
 /// The JSON pointer of a camera parameter below the camera object.
@@ -194,5 +195,52 @@ pub fn problem_from_calibrate_error(err: &CalibrateError) -> Problem {
             _ => Problem::new(ErrorCode::CalibrationFailed, err.to_string()),
         },
         CalibrateError::Cancelled => Problem::new(ErrorCode::Timeout, err.to_string()),
+    }
+}
+
+/// The problem document of a hand-eye calibration that gave no answer; `field` names the
+/// photo (`image/K`), the photos (`image`) or the flange poses.
+pub fn problem_from_hand_eye_error(err: &HandEyeRequestError) -> Problem {
+    let photo = |index: usize| format!("{PHOTOS_PART}/{index}");
+    match err {
+        HandEyeRequestError::FlangePosesMismatch { .. } => {
+            Problem::new(ErrorCode::FlangePosesMismatch, err.to_string())
+                .with_field("/flange_poses")
+        }
+        HandEyeRequestError::TooFewPhotos { .. } => {
+            Problem::new(ErrorCode::TooFewViews, err.to_string()).with_field(PHOTOS_PART)
+        }
+        HandEyeRequestError::TooManyPhotos { .. } => {
+            Problem::new(ErrorCode::TooManyImages, err.to_string()).with_field(PHOTOS_PART)
+        }
+        HandEyeRequestError::Decode { index, source } => {
+            let problem = problem_from_decode_error(source);
+            Problem::new(problem.code, err.to_string()).with_field(photo(*index))
+        }
+        HandEyeRequestError::MixedSizes { index } => {
+            Problem::new(ErrorCode::MixedImageSizes, err.to_string()).with_field(photo(*index))
+        }
+        HandEyeRequestError::NoCodeFound { .. } => {
+            Problem::new(ErrorCode::NoCodeFound, err.to_string()).with_field(PHOTOS_PART)
+        }
+        HandEyeRequestError::Solve(e) => match e {
+            HandEyeError::TooFewViews { .. } => {
+                Problem::new(ErrorCode::TooFewViews, err.to_string()).with_field(PHOTOS_PART)
+            }
+            HandEyeError::DegenerateMotion { .. } => {
+                Problem::new(ErrorCode::DegenerateMotion, err.to_string())
+                    .with_field("/flange_poses")
+            }
+            HandEyeError::NonFinite { .. } | HandEyeError::InvalidOption { .. } => {
+                Problem::new(ErrorCode::NumericallyDegenerate, err.to_string())
+            }
+            HandEyeError::InvalidCamera => {
+                Problem::new(ErrorCode::IncompleteCamera, err.to_string()).with_field("/camera")
+            }
+            HandEyeError::SolveFailed(_) => {
+                Problem::new(ErrorCode::CalibrationFailed, err.to_string())
+            }
+        },
+        HandEyeRequestError::Cancelled => Problem::new(ErrorCode::Timeout, err.to_string()),
     }
 }

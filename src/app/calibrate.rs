@@ -195,7 +195,9 @@ pub fn calibrate_photos<B: AsRef<[u8]>>(
                 first_height_px: first.height_px,
             });
         }
-        let mut report = photo_points(setup, &image, index, cancel);
+        let mut report = photo_points(&image, index, setup.max_detect, cancel, |_| {
+            Some(setup.marker)
+        });
         if report.points.len() >= MIN_POINTS_PER_VIEW {
             report.view = Some(views.len());
             views.push(view_of(&report.points));
@@ -242,20 +244,22 @@ pub fn calibrate_photos<B: AsRef<[u8]>>(
 }
 
 /// The decoded image's size.
-fn image_size(image: &GrayImage) -> ImageSize {
+pub(super) fn image_size(image: &GrayImage) -> ImageSize {
     // Decoded sides are at most the decoder's limits, far below u32::MAX.
     let side = |x: usize| u32::try_from(x).unwrap_or(u32::MAX);
     ImageSize::new(side(image.width()), side(image.height()))
 }
 
-/// The codes of one photo, and the points of the decoded one with the most.
-fn photo_points(
-    setup: &CalibrateSetup,
+/// The codes of one photo, and the points of the decoded one with the most, each code
+/// measured at the size `size_of` gives its payload (a code it gives none is left out).
+pub(super) fn photo_points(
     image: &GrayImage,
     index: usize,
+    max_detect: Duration,
     cancel: &CancelFlag,
+    size_of: impl Fn(Option<&str>) -> Option<Marker>,
 ) -> PhotoReport {
-    let budget = Budget::new(Effort::Balanced, Some(setup.max_detect)).cancelled_by(cancel.clone());
+    let budget = Budget::new(Effort::Balanced, Some(max_detect)).cancelled_by(cancel.clone());
     // Auto needs no backend beyond the default build.
     let codes = detect_within(image, DetectorChoice::Auto, &budget)
         .map(|d| d.codes)
@@ -266,7 +270,10 @@ fn photo_points(
         .collect();
     let best = decoded
         .iter()
-        .map(|code| (code, calibration_points(image, code, &setup.marker)))
+        .filter_map(|code| {
+            let marker = size_of(code.candidate.text.as_deref())?;
+            Some((code, calibration_points(image, code, &marker)))
+        })
         .max_by_key(|(_, points)| points.len());
     let (payload, points) = match best {
         Some((code, points)) => (code.candidate.text.clone(), points),
@@ -294,7 +301,7 @@ fn view_of(points: &[TargetPoint]) -> View {
     }
 }
 
-fn ms_since(t: Instant) -> f64 {
+pub(super) fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 

@@ -10,6 +10,7 @@
 //! | [`estimate_image`] | `POST /v1/pose/image` (and `/annotated`), `qrpose estimate --image` |
 //! | [`TrackSession::frame`] | each frame of `GET /v1/stream`, `qrpose track` |
 //! | [`calibrate_photos`] | `POST /v1/calibrate`, `qrpose calibrate` |
+//! | [`calibrate_hand_eye_photos`] | `POST /v1/calibrate/hand-eye`, `qrpose calibrate hand-eye` |
 //!
 //! Each operation takes the loaded site, if any, inside its [`Setup`], and returns a domain
 //! answer that `api::` maps to JSON. Nothing here names HTTP, JSON or a query parameter:
@@ -24,6 +25,7 @@
 mod calibrate;
 mod corners;
 mod frames;
+mod hand_eye;
 mod image;
 mod prior;
 mod setup;
@@ -31,6 +33,7 @@ mod track;
 
 // What the wire layers name of the crates below: `crate::http` reaches them only through
 // this layer (tests/structure.rs keeps the rule).
+pub use qrpose_calib::handeye::MIN_HAND_EYE_VIEWS;
 pub use qrpose_core::estimate::Method;
 pub use qrpose_core::geometry::distortion::DistortionModel;
 pub use qrpose_detect::Backend;
@@ -45,6 +48,10 @@ pub use calibrate::{
 };
 pub use corners::{CornersAnswer, CornersError, estimate_corners};
 pub use frames::{InFrames, Localization, SiteFrames};
+pub use hand_eye::{
+    HandEyeAnswer, HandEyeRequestError, HandEyeRequestSetup, MAX_HAND_EYE_PHOTOS, TargetSize,
+    calibrate_hand_eye_photos,
+};
 pub use image::{ImageAnswer, ImageError, MarkerAnswer, Timing, estimate_decoded, estimate_image};
 pub use prior::Prior;
 pub use setup::{DetectSetup, ImageLimits, ImageSetup, Setup, SizeResolver, Sizing};

@@ -12,6 +12,7 @@ mod connections;
 mod corners;
 mod corners_bad_inputs;
 mod docs;
+mod hand_eye;
 mod health;
 mod healthcheck;
 mod image;

@@ -127,6 +127,14 @@ pub enum ErrorCode {
     CalibrationFailed,
     /// 422: a tracker parameter of `GET /v1/stream` is outside its documented range.
     InvalidTrackerParameter,
+    /// 422: a robot pose with no rotation or two rotation forms, or a quaternion whose norm
+    /// is off 1 by more than 1e-3 (`docs/hand-eye.md`, Robot poses).
+    InvalidRobotPose,
+    /// 422: a hand-eye calibration was not sent one flange pose per photo.
+    FlangePosesMismatch,
+    /// 422: the motions between a hand-eye calibration's views turn about fewer than two
+    /// distinct axes: the camera's mount cannot be told.
+    DegenerateMotion,
     /// 426: `GET /v1/stream` asked for without a WebSocket upgrade.
     UpgradeRequired,
     /// 401: the route needs a bearer token (`--auth-file`) and the request has none, or one
@@ -194,6 +202,9 @@ impl ErrorCode {
             UnknownCamera => "Unknown camera",
             UnknownMarkerSize => "Unknown marker size",
             InvalidPrior => "Invalid prior",
+            InvalidRobotPose => "Invalid robot pose",
+            FlangePosesMismatch => "Not one flange pose per photo",
+            DegenerateMotion => "Degenerate motion",
             NoSite => "No site loaded",
             InvalidSite => "Invalid site file",
             PayloadTooLarge => "Payload too large",

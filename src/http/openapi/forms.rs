@@ -9,7 +9,7 @@
 //! `request` there too.
 
 use crate::http::image_input::{IMAGE_PART, JPEG, MULTIPART, PNG, REQUEST_PART};
-use crate::http::routes::{annotated, calibrate, image};
+use crate::http::routes::{annotated, calibrate, hand_eye, image};
 use serde_json::{Map, Value, json};
 
 /// The JSON pointer of the body of `POST path` in `media_type`.
@@ -34,6 +34,7 @@ fn close_form<'a>(doc: &'a mut Value, path: &str) -> Option<&'a mut Map<String, 
 /// calibration's form.
 pub fn document_forms(doc: &mut Value) {
     close_form(doc, calibrate::PATH);
+    close_form(doc, hand_eye::PATH);
     for path in [image::PATH, annotated::PATH] {
         for media_type in [JPEG, PNG] {
             if let Some(raw) = doc.pointer_mut(&body_pointer(path, media_type)) {

@@ -25,7 +25,7 @@ mod variants;
 pub use requests::Served;
 
 use super::error::ApiError;
-use super::routes::{annotated, calibrate, corners, health, image, metrics, page, site};
+use super::routes::{annotated, calibrate, corners, hand_eye, health, image, metrics, page, site};
 use super::state::AppState;
 use crate::app::Backend;
 use axum::body::Bytes;
@@ -103,6 +103,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(image::pose_from_image))
         .routes(routes!(annotated::pose_from_image_annotated))
         .routes(routes!(calibrate::calibrate))
+        .routes(routes!(hand_eye::calibrate_hand_eye))
         .routes(routes!(page::setup_page))
         .routes(routes!(health::healthz))
         .routes(routes!(health::readyz))

@@ -34,9 +34,23 @@ pub struct CalibrateForm {
     pub request: CalibrateRequest,
 }
 
-/// The `image` parts: 3 to 100 files of bytes (`format: binary` beside the 3.1
-/// `contentMediaType`, for generators that read only the OpenAPI 3.0 form).
+/// The `image` parts: 3 to 100 files of bytes.
 fn photos_schema() -> utoipa::openapi::schema::Array {
+    photos_array(
+        crate::app::MIN_PHOTOS,
+        crate::app::MAX_PHOTOS,
+        "The photos, one part `image` each, 3 to 100, from one camera at one resolution: \
+         JPEG or PNG bytes (the format is read from the bytes).",
+    )
+}
+
+/// `min` to `max` `image` parts of bytes (`format: binary` beside the 3.1
+/// `contentMediaType`, for generators that read only the OpenAPI 3.0 form).
+pub(super) fn photos_array(
+    min: usize,
+    max: usize,
+    description: &str,
+) -> utoipa::openapi::schema::Array {
     use utoipa::openapi::schema::{ArrayBuilder, KnownFormat, ObjectBuilder, SchemaFormat, Type};
     let photo = ObjectBuilder::new()
         .schema_type(Type::String)
@@ -44,12 +58,9 @@ fn photos_schema() -> utoipa::openapi::schema::Array {
         .content_media_type("application/octet-stream");
     ArrayBuilder::new()
         .items(photo)
-        .min_items(Some(crate::app::MIN_PHOTOS))
-        .max_items(Some(crate::app::MAX_PHOTOS))
-        .description(Some(
-            "The photos, one part `image` each, 3 to 100, from one camera at one resolution: \
-             JPEG or PNG bytes (the format is read from the bytes).",
-        ))
+        .min_items(Some(min))
+        .max_items(Some(max))
+        .description(Some(description))
         .build()
 }
 

@@ -4,6 +4,7 @@ pub mod annotated;
 pub mod calibrate;
 pub mod corners;
 pub mod docs;
+pub mod hand_eye;
 pub mod health;
 pub mod image;
 pub mod metrics;

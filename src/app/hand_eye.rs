@@ -1,0 +1,267 @@
+//! The camera's pose on a robot from photos of a printed code and the flange pose of each:
+//! `POST /v1/calibrate/hand-eye` and `qrpose calibrate hand-eye` (`docs/hand-eye.md`).
+//!
+//! Each photo is decoded, checked against the first photo's size and searched for codes as
+//! a camera calibration's photos are (the same points: finder corners, alignment centres,
+//! module corners); the code with the most points is the photo's view, measured at the size
+//! the request gives or the site gives its payload. The views and the flange poses go to
+//! [`calibrate_hand_eye`]: a closed form on the per-view poses, then one
+//! robust fit of the mount, the target and every flange pose as a noisy measurement.
+
+use super::calibrate::{PhotoReport, image_size, ms_since, photo_points};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use qrpose_calib::handeye::{
+    HandEyeCalibration, HandEyeError, HandEyeOptions, HandEyeSetup, HandEyeView,
+    MIN_HAND_EYE_VIEWS, calibrate_hand_eye,
+};
+use qrpose_calib::{Correspondence, ImageSize};
+use qrpose_core::geometry::camera::Camera;
+use qrpose_core::geometry::marker::Marker;
+use qrpose_detect::cancel::CancelFlag;
+use qrpose_detect::decode::{self, DecodeError, DecodeLimits};
+use qrpose_site::Site;
+use qrpose_site::transform::Rigid;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Most photos one hand-eye calibration takes.
+pub const MAX_HAND_EYE_PHOTOS: usize = 100;
+
+/// How the code of the photos is sized.
+#[derive(Debug, Clone)]
+pub enum TargetSize {
+    /// The request's size.
+    Given(Marker),
+    /// The site's rule for the code's payload.
+    BySite(Arc<Site>),
+}
+
+impl TargetSize {
+    fn marker_for(&self, payload: Option<&str>) -> Option<Marker> {
+        match self {
+            Self::Given(marker) => Some(*marker),
+            Self::BySite(site) => {
+                let lookup = site.sizes().lookup(payload)?;
+                Marker::try_new(lookup.size_mm).ok()
+            }
+        }
+    }
+}
+
+/// A validated hand-eye request.
+#[derive(Debug, Clone)]
+pub struct HandEyeRequestSetup {
+    /// Eye-in-hand or eye-to-hand.
+    pub setup: HandEyeSetup,
+    /// The camera that took the photos (pixel form, with its lens).
+    pub camera: Camera,
+    /// The printed code's size.
+    pub size: TargetSize,
+    /// T_robot←flange when each photo was taken, in the photos' order.
+    pub flange_poses: Vec<Rigid>,
+    /// What each photo may cost to decode.
+    pub decode: DecodeLimits,
+    /// The detection deadline of each photo.
+    pub max_detect: Duration,
+}
+
+/// A hand-eye calibration and the photos it came from.
+#[derive(Debug, Clone)]
+pub struct HandEyeAnswer {
+    /// Every photo, in the order given.
+    pub photos: Vec<PhotoReport>,
+    /// The mount, the target, their uncertainty, the residuals, the warnings.
+    pub calibration: HandEyeCalibration,
+    /// Decoding and detecting every photo and measuring its points, ms.
+    pub detect_ms: f64,
+    /// The solve, ms.
+    pub solve_ms: f64,
+}
+
+/// Why the photos gave no hand-eye calibration.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum HandEyeRequestError {
+    /// Not one flange pose per photo.
+    #[error("{photos} photos and {poses} flange poses: give one flange pose per photo, in order")]
+    FlangePosesMismatch {
+        /// Photos given.
+        photos: usize,
+        /// Flange poses given.
+        poses: usize,
+    },
+    /// Fewer than [`MIN_HAND_EYE_VIEWS`] photos.
+    #[error("{given} photos given; a hand-eye calibration needs at least {required}")]
+    TooFewPhotos {
+        /// Photos given.
+        given: usize,
+        /// Photos needed.
+        required: usize,
+    },
+    /// More than [`MAX_HAND_EYE_PHOTOS`] photos.
+    #[error("{given} photos given; at most {max} are taken")]
+    TooManyPhotos {
+        /// Photos given.
+        given: usize,
+        /// The limit.
+        max: usize,
+    },
+    /// A photo is not an image this service reads, or is over the limits.
+    #[error("photo {index}: {source}")]
+    Decode {
+        /// The photo, 0-based.
+        index: usize,
+        /// Why.
+        source: DecodeError,
+    },
+    /// A photo's size differs from the first's.
+    #[error("photo {index} is not the size of photo 0: every photo must come from one camera")]
+    MixedSizes {
+        /// The photo, 0-based.
+        index: usize,
+    },
+    /// No photo has a decoded code of a known size.
+    #[error("no QR code of a known size was decoded in any of the {photos} photos")]
+    NoCodeFound {
+        /// Photos given.
+        photos: usize,
+    },
+    /// The solve refused the views.
+    #[error(transparent)]
+    Solve(#[from] HandEyeError),
+    /// The request gave up while the photos were read.
+    #[error("the calibration was cancelled")]
+    Cancelled,
+}
+
+/// T_robot←flange as the calibration takes it.
+fn isometry(pose: &Rigid) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::from(pose.translation_mm),
+        UnitQuaternion::from_rotation_matrix(&pose.rotation),
+    )
+}
+
+/// Calibrates the camera's mount from `photos` (JPEG, PNG or WebP) and the flange poses of
+/// `setup`; `cancel` stops it between photos.
+///
+/// # Errors
+/// [`HandEyeRequestError`]: the counts, a photo that does not decode or differs in size,
+/// no code anywhere, the solve's refusals (too few views read, degenerate motion).
+pub fn calibrate_hand_eye_photos<B: AsRef<[u8]>>(
+    setup: &HandEyeRequestSetup,
+    photos: &[B],
+    cancel: &CancelFlag,
+) -> Result<HandEyeAnswer, HandEyeRequestError> {
+    let given = photos.len();
+    if setup.flange_poses.len() != given {
+        return Err(HandEyeRequestError::FlangePosesMismatch {
+            photos: given,
+            poses: setup.flange_poses.len(),
+        });
+    }
+    if given < MIN_HAND_EYE_VIEWS {
+        return Err(HandEyeRequestError::TooFewPhotos {
+            given,
+            required: MIN_HAND_EYE_VIEWS,
+        });
+    }
+    if given > MAX_HAND_EYE_PHOTOS {
+        return Err(HandEyeRequestError::TooManyPhotos {
+            given,
+            max: MAX_HAND_EYE_PHOTOS,
+        });
+    }
+    let started = Instant::now();
+    let mut size: Option<ImageSize> = None;
+    let mut reports = Vec::with_capacity(given);
+    let mut views = Vec::with_capacity(given);
+    let mut marker: Option<Marker> = None;
+    for ((index, bytes), flange) in photos.iter().enumerate().zip(&setup.flange_poses) {
+        if cancel.is_cancelled() {
+            return Err(HandEyeRequestError::Cancelled);
+        }
+        let image = decode::decode_gray(bytes.as_ref(), &setup.decode)
+            .map_err(|source| HandEyeRequestError::Decode { index, source })?;
+        let this = image_size(&image);
+        if this != *size.get_or_insert(this) {
+            return Err(HandEyeRequestError::MixedSizes { index });
+        }
+        let report = photo_points(&image, index, setup.max_detect, cancel, |payload| {
+            setup.size.marker_for(payload)
+        });
+        if !report.points.is_empty() {
+            marker = marker.or_else(|| setup.size.marker_for(report.payload.as_deref()));
+        }
+        views.push(HandEyeView {
+            correspondences: report
+                .points
+                .iter()
+                .map(|p| {
+                    Correspondence::new(p.marker.0.x, p.marker.0.y, p.pixel_px.u(), p.pixel_px.v())
+                })
+                .collect(),
+            flange_pose: isometry(flange),
+        });
+        reports.push(report);
+    }
+    let detect_ms = ms_since(started);
+    let Some(marker) = marker else {
+        return Err(HandEyeRequestError::NoCodeFound { photos: given });
+    };
+    let started = Instant::now();
+    // Every photo decoded, so there is a first size.
+    let image = size.unwrap_or(ImageSize::new(0, 0));
+    let calibration = calibrate_hand_eye(
+        &setup.camera,
+        image,
+        &marker,
+        &views,
+        setup.setup,
+        &HandEyeOptions::default(),
+    )?;
+    Ok(HandEyeAnswer {
+        photos: reports,
+        calibration,
+        detect_ms,
+        solve_ms: ms_since(started),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use qrpose_core::geometry::camera::Camera;
+
+    fn setup(poses: usize) -> HandEyeRequestSetup {
+        HandEyeRequestSetup {
+            setup: HandEyeSetup::EyeInHand,
+            camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("a camera"),
+            size: TargetSize::Given(Marker::try_new(120.0).expect("a size")),
+            flange_poses: vec![Rigid::identity(); poses],
+            decode: DecodeLimits::default(),
+            max_detect: Duration::from_secs(5),
+        }
+    }
+
+    #[test]
+    fn the_counts_are_checked_before_any_photo_is_read() {
+        let cancel = CancelFlag::new();
+        let five = vec![b"not read".to_vec(); 5];
+        assert!(matches!(
+            calibrate_hand_eye_photos(&setup(4), &five, &cancel),
+            Err(HandEyeRequestError::FlangePosesMismatch {
+                photos: 5,
+                poses: 4
+            })
+        ));
+        let three = vec![b"not read".to_vec(); 3];
+        assert!(matches!(
+            calibrate_hand_eye_photos(&setup(3), &three, &cancel),
+            Err(HandEyeRequestError::TooFewPhotos { given: 3, .. })
+        ));
+        assert!(matches!(
+            calibrate_hand_eye_photos(&setup(5), &five, &cancel),
+            Err(HandEyeRequestError::Decode { index: 0, .. })
+        ));
+    }
+}
