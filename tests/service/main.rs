@@ -9,6 +9,7 @@ mod support;
 mod annotated;
 mod cli;
 mod cli_calibrate;
+mod cli_hand_eye;
 mod curl_suite;
 mod fd_exhaustion;
 mod generated_clients;

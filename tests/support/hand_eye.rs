@@ -4,6 +4,9 @@
 //! about different axes; the flange poses follow from the mount and the target (exact: the
 //! rendered views are the truth, the poses reported are the true ones).
 
+// Each test binary uses its own part of it.
+#![allow(dead_code)]
+
 use nalgebra::{Isometry3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
 use qrpose::geometry::camera::{Camera, Distortion, DistortionModel};
 use qrpose::geometry::marker::Marker;
