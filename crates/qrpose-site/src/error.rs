@@ -45,7 +45,7 @@ pub enum Reason {
     /// Two size rules with the same key, or a payload mapped twice: which one was meant?
     #[error("{section}: {key} is listed twice")]
     Duplicate {
-        /// `markers.sizes` or `map`.
+        /// `markers.sizes`, `map` or `objects`.
         section: &'static str,
         /// `payload "DOCK-7"`, `prefix "TOTE-"`, `pattern "^LOC-"`.
         key: String,

@@ -8,6 +8,14 @@ use serde::de::{self, Deserializer};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+mod objects;
+
+pub use objects::{
+    GraspEntry, GraspKindName, GripperEntry, ObjectEntries, ObjectEntry, ObjectRigidEntry,
+    ObjectRuleError, Positive3, StrictUnitQuaternionWxyz, ToleranceEntry,
+    UNIT_QUATERNION_TOLERANCE,
+};
+
 /// Below this norm a quaternion has no direction: refused rather than normalised.
 pub const MIN_QUATERNION_NORM: f64 = 1e-9;
 
@@ -24,6 +32,9 @@ pub struct SiteFile {
     /// Codes' poses in the warehouse frame.
     #[serde(default)]
     pub map: MapEntries,
+    /// Products by payload: box, code and grasps (`docs/site.md`, Objects).
+    #[serde(default)]
+    pub objects: ObjectEntries,
 }
 
 /// One camera: a calibration file, or inline intrinsics (and distortion); and its mount.
@@ -36,8 +47,66 @@ pub struct CameraEntry {
     pub intrinsics: Option<IntrinsicsEntry>,
     /// Inline distortion (with `intrinsics` only).
     pub distortion: Option<DistortionEntry>,
-    /// The camera's pose in the robot frame: p_robot = R·p_camera + t.
-    pub mount: Option<RigidEntry>,
+    /// The camera's pose on the robot: p_parent = R·p_camera + t.
+    pub mount: Option<MountEntry>,
+}
+
+/// What a camera is mounted on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MountParentName {
+    /// Fixed in the robot's (base) frame: the mount is T_robot←camera.
+    #[default]
+    Robot,
+    /// On the tool flange (eye-in-hand): the mount is T_flange←camera.
+    Flange,
+}
+
+/// A camera's mount as written: T_parent←camera and, optionally, its uncertainty.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MountEntry {
+    /// `robot` (default) or `flange`.
+    #[serde(default)]
+    pub parent: MountParentName,
+    /// t, mm: the camera's optical centre in the parent frame.
+    pub translation_mm: Finite3,
+    /// R as (w, x, y, z), normalised on reading.
+    pub quaternion_wxyz: UnitQuaternionWxyz,
+    /// One standard deviation of the mount about the camera's own axes.
+    pub std: Option<MountStdEntry>,
+}
+
+/// One standard deviation of a mount, about and along the camera's own axes (x, y, z), as a
+/// hand-eye calibration reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MountStdEntry {
+    /// Rotation about the camera's x, y, z, degrees, ≥ 0.
+    pub rotation_deg: NonNegative3,
+    /// Translation along the camera's x, y, z, mm, ≥ 0.
+    pub translation_mm: NonNegative3,
+}
+
+/// Three finite numbers ≥ 0.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct NonNegative3(pub [f64; 3]);
+
+impl<'de> Deserialize<'de> for NonNegative3 {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_seq(CheckedNumbers::<3> {
+            check: |v| {
+                if v.iter().all(|x| x.is_finite() && *x >= 0.0) {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "a standard deviation must be three finite numbers >= 0, got {v:?}"
+                    ))
+                }
+            },
+        })
+        .map(Self)
+    }
 }
 
 /// Pinhole intrinsics, px.

@@ -6,8 +6,11 @@
 use crate::calibration::{CalibrationFormat, parse_calibration};
 use crate::error::{Reason, SiteError, line_of};
 use crate::file::{
-    CameraEntry, DistortionEntry, DistortionModelName, IntrinsicsEntry, RigidEntry, SiteFile,
+    CameraEntry, DistortionEntry, DistortionModelName, IntrinsicsEntry, MountEntry,
+    MountParentName, SiteFile,
 };
+use crate::mount::{CameraMount, MountParent, MountStd};
+use crate::objects::ObjectRule;
 use crate::sizes::MarkerSizes;
 use crate::transform::Rigid;
 use nalgebra::Vector3;
@@ -47,8 +50,12 @@ pub struct SiteCamera {
     pub source: CameraSource,
     /// The calibrated image size (width, height), px, when the calibration file gives it.
     pub image_size_px: Option<(u32, u32)>,
-    /// T_robot←camera: p_robot = R·p_camera + t; `None` without a mount.
+    /// T_robot←camera: p_robot = R·p_camera + t, for a camera fixed on the robot
+    /// (`parent: robot`); `None` without a mount and for a camera on the flange, whose pose
+    /// in the robot frame needs the flange's pose ([`CameraMount::camera_in_robot`]).
     pub mount: Option<Rigid>,
+    /// The mount as written: parent, T_parent←camera and its standard deviation.
+    pub camera_mount: Option<CameraMount>,
 }
 
 /// One code of the map.
@@ -68,6 +75,7 @@ pub struct Site {
     cameras: BTreeMap<String, SiteCamera>,
     sizes: MarkerSizes,
     map: Vec<MappedCode>,
+    objects: Vec<ObjectRule>,
 }
 
 /// SHA-256 of `bytes`, lower-case hex.
@@ -78,10 +86,20 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
         .collect()
 }
 
-fn rigid_from_entry(e: &RigidEntry) -> Rigid {
-    Rigid {
-        rotation: e.quaternion_wxyz.0.to_rotation_matrix(),
-        translation_mm: Vector3::from(e.translation_mm.0),
+fn mount_from_entry(e: &MountEntry) -> CameraMount {
+    CameraMount {
+        parent: match e.parent {
+            MountParentName::Robot => MountParent::Robot,
+            MountParentName::Flange => MountParent::Flange,
+        },
+        pose: Rigid {
+            rotation: e.quaternion_wxyz.0.to_rotation_matrix(),
+            translation_mm: Vector3::from(e.translation_mm.0),
+        },
+        std: e.std.map(|s| MountStd {
+            rotation_rad: Vector3::from(s.rotation_deg.0).map(f64::to_radians),
+            translation_mm: Vector3::from(s.translation_mm.0),
+        }),
     }
 }
 
@@ -148,6 +166,9 @@ impl Site {
         check_unique(text, path, "markers.sizes", "sizes", rule_keys)?;
         let map_keys = map.iter().map(|m| ("payload", m.payload.as_str()));
         check_unique(text, path, "map", "map", map_keys)?;
+        let objects: Vec<ObjectRule> = file.objects.0.iter().map(ObjectRule::from).collect();
+        let object_keys = objects.iter().map(|o| o.matcher.key());
+        check_unique(text, path, "objects", "objects", object_keys)?;
         if let Some(without_size) = map
             .iter()
             .find(|m| sizes.lookup(Some(&m.payload)).is_none())
@@ -166,6 +187,7 @@ impl Site {
             cameras,
             sizes,
             map,
+            objects,
         })
     }
 
@@ -197,6 +219,16 @@ impl Site {
     /// The map, in the file's order.
     pub fn map(&self) -> &[MappedCode] {
         &self.map
+    }
+
+    /// The object rules, in the file's order.
+    pub fn objects(&self) -> &[ObjectRule] {
+        &self.objects
+    }
+
+    /// The first object rule that matches `payload`, with its label (`prefix:SKU-`).
+    pub fn object_for(&self, payload: &str) -> Option<(&str, &ObjectRule)> {
+        crate::objects::object_for(&self.objects, payload).map(|r| (r.label.as_str(), r))
     }
 
     /// T_world←marker of the code with this payload, when it is mapped.
@@ -267,7 +299,10 @@ fn camera_line(text: &str, id: &str, reason: &Reason) -> Option<usize> {
 }
 
 fn resolve_camera(id: &str, entry: &CameraEntry, base: &Path) -> Result<SiteCamera, Reason> {
-    let mount = entry.mount.as_ref().map(rigid_from_entry);
+    let camera_mount = entry.mount.as_ref().map(mount_from_entry);
+    let mount = camera_mount
+        .filter(|m| m.parent == MountParent::Robot)
+        .map(|m| m.pose);
     let form_error = |detail: &str| Reason::CameraForm {
         id: id.to_owned(),
         detail: detail.to_owned(),
@@ -304,6 +339,7 @@ fn resolve_camera(id: &str, entry: &CameraEntry, base: &Path) -> Result<SiteCame
                 },
                 image_size_px: parsed.image_size_px,
                 mount,
+                camera_mount,
             })
         }
         (None, Some(intrinsics)) => {
@@ -329,6 +365,7 @@ fn resolve_camera(id: &str, entry: &CameraEntry, base: &Path) -> Result<SiteCame
                 },
                 image_size_px: None,
                 mount,
+                camera_mount,
             })
         }
         (Some(_), Some(_)) => Err(form_error("give calibration or intrinsics, not both")),

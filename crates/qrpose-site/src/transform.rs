@@ -14,7 +14,12 @@
 //! Each map's Jacobian J gives Σ' = J·Σ·Jᵀ:
 //! - fixed on the left, T' = A·T: δθ' = R_A·δθ, δt' = R_A·δt ([`fixed_then`]);
 //! - fixed on the right, T' = T·B: δθ' = δθ, δt' = −[R·t_B]×·δθ + δt ([`then_fixed`]);
-//! - inverse, T' = T⁻¹: δθ' = −Rᵀ·δθ, δt' = −Rᵀ·[t]×·δθ − Rᵀ·δt ([`inverse`]).
+//! - inverse, T' = T⁻¹: δθ' = −Rᵀ·δθ, δt' = −Rᵀ·[t]×·δθ − Rᵀ·δt ([`inverse`]);
+//! - both uncertain and independent, T' = A·T ([`compose`]): A's perturbation gives
+//!   δθ' = δθ_A, δt' = δt_A − [R_A·t_T]×·δθ_A (a turn of A moves T's origin at the lever arm
+//!   R_A·t_T); T's as in [`fixed_then`]; Σ' = J_A·Σ_A·J_Aᵀ + J_T·Σ_T·J_Tᵀ.
+//!
+//! A mount with a standard deviation ([`crate::mount`]) is such an uncertain left factor.
 
 use nalgebra::{Matrix3, Matrix6, Rotation3, Vector3};
 use qrpose_core::estimate::PoseEstimate;
@@ -114,6 +119,28 @@ pub fn then_fixed(t: &PoseWithCovariance, b: &Rigid) -> PoseWithCovariance {
     PoseWithCovariance {
         pose: t.pose.then(b),
         covariance: propagate(&j, t.covariance),
+    }
+}
+
+/// A·T for an uncertain A independent of T (module docs); the covariance is `None` when
+/// either factor has none.
+pub fn compose(a: &PoseWithCovariance, t: &PoseWithCovariance) -> PoseWithCovariance {
+    let r = *a.pose.rotation.matrix();
+    let lever = a.pose.rotation * t.pose.translation_mm;
+    let j_a = block_jacobian(
+        Matrix3::identity(),
+        Matrix3::zeros(),
+        -lever.cross_matrix(),
+        Matrix3::identity(),
+    );
+    let j_t = block_jacobian(r, Matrix3::zeros(), Matrix3::zeros(), r);
+    let covariance = match (propagate(&j_a, a.covariance), propagate(&j_t, t.covariance)) {
+        (Some(ca), Some(ct)) => Some(ca + ct),
+        _ => None,
+    };
+    PoseWithCovariance {
+        pose: a.pose.then(&t.pose),
+        covariance,
     }
 }
 
