@@ -3,7 +3,6 @@
 //! [`PoseResponse`] (with a site: the camera by id, the marker size by payload, the prior,
 //! and the pose in the robot's and the warehouse's frame, `docs/site.md`).
 
-use super::frames::FramePoseDto;
 use super::problem::Problem;
 use super::refusal::problem_from_corners_error;
 use super::request::{CornersRequest, ValidCorners};
@@ -60,10 +59,7 @@ pub fn pose_response(
     )?;
     response.with_site(
         answer.size_source.into(),
-        (
-            answer.frames.in_robot.as_ref().map(FramePoseDto::from),
-            answer.frames.in_world.as_ref().map(FramePoseDto::from),
-        ),
+        &answer.frames,
         answer.resolved_by_prior,
         valid.corners_pointer,
     )

@@ -18,6 +18,7 @@ pub mod frames;
 pub mod hand_eye;
 pub mod image;
 mod integral;
+pub mod pick;
 pub mod problem;
 pub mod refusal;
 pub mod request;

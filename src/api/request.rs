@@ -10,6 +10,7 @@ use super::context::{missing_marker, resolve_camera, resolve_marker};
 pub use super::frames::PriorDto;
 use super::problem::{ErrorCode, Problem};
 use super::refusal::{problem_from_estimate_error, problem_from_quad_error};
+use super::robot::{RobotPoseDto, pick_of};
 use crate::app::{Setup, Sizing};
 use crate::estimate::{
     DEFAULT_CORNER_SIGMA_PX, DEFAULT_GAIN, DEFAULT_INITIAL_Z_MM, DEFAULT_MAX_ITERATIONS,
@@ -209,6 +210,16 @@ pub struct CornersRequest {
     /// (`reprojection` only); `ambiguity.resolved_by` says when it decided.
     #[serde(default)]
     pub prior: Option<PriorDto>,
+    /// The arm's pose (T_robot←flange, as the controller reports it) when the corners were
+    /// seen: with a camera on the flange (`mount.parent: flange`), poses in the robot frame
+    /// exist only with it (`docs/pick.md`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flange_pose: Option<RobotPoseDto>,
+    /// The least probability of landing within tolerance for a grasp to be `graspable`
+    /// (default 0.95).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 0, maximum = 1, example = 0.95)]
+    pub min_grasp_probability: Option<f64>,
 }
 
 /// The schema of a corner list: four distinct `[u, v]` pairs of numbers (else
@@ -436,6 +447,7 @@ impl CornersRequest {
                 sizing: Sizing::Fixed { marker, source },
                 solver,
                 prior,
+                pick: pick_of(self.flange_pose.as_ref(), self.min_grasp_probability)?,
             },
             quad,
             payload: self.payload.clone(),

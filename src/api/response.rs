@@ -2,8 +2,10 @@
 
 use super::finite::first_non_finite;
 use super::frames::{FramePoseDto, MarkerSizeSourceDto};
+use super::pick::ObjectDto;
 use super::problem::{ErrorCode, Problem};
 use super::request::MethodDto;
+use crate::app::InFrames;
 use crate::estimate::{Ambiguity, Diagnostics, Method, PoseEstimate, TraceStep, Warning};
 use crate::geometry::{
     camera::{Camera, ImageUnit},
@@ -249,6 +251,9 @@ pub struct PoseResponse {
     /// The robot's pose in the warehouse frame from this code alone (T_world←robot), when
     /// the code's payload is in the site's `map` and the camera has a `mount`; else null.
     pub robot_pose_in_world: Option<FramePoseDto>,
+    /// The product the payload names in the site's `objects`, with its grasps; else null
+    /// (`docs/pick.md`).
+    pub object: Option<ObjectDto>,
     /// How the pose was found and how far to trust it.
     pub diagnostics: DiagnosticsDto,
 }
@@ -348,6 +353,7 @@ impl PoseResponse {
             rotation: RotationDto::from_rotation(&estimate.pose.rotation()),
             pose_in_robot: None,
             robot_pose_in_world: None,
+            object: None,
             diagnostics: DiagnosticsDto::new(
                 &estimate.diagnostics,
                 camera,
@@ -388,16 +394,18 @@ impl PoseResponse {
     pub fn with_site(
         mut self,
         source: MarkerSizeSourceDto,
-        frames: (Option<FramePoseDto>, Option<FramePoseDto>),
+        frames: &InFrames,
         resolved_by_prior: bool,
         corners_pointer: &str,
     ) -> Result<Self, Problem> {
         self.marker_size_source = source;
-        (self.pose_in_robot, self.robot_pose_in_world) = frames;
+        self.pose_in_robot = frames.in_robot.as_ref().map(FramePoseDto::from);
+        self.robot_pose_in_world = frames.in_world.as_ref().map(FramePoseDto::from);
+        self.object = frames.object.as_ref().map(ObjectDto::from);
         if resolved_by_prior && let Some(a) = self.diagnostics.ambiguity.as_mut() {
             a.resolved_by = ResolvedByDto::Prior;
         }
-        let added = (&self.pose_in_robot, &self.robot_pose_in_world);
+        let added = (&self.pose_in_robot, &self.robot_pose_in_world, &self.object);
         match first_non_finite(&added) {
             None => Ok(self),
             Some(pointer) => Err(numerically_degenerate(&pointer, corners_pointer)),

@@ -10,7 +10,9 @@
 
 use super::problem::{ErrorCode, Problem};
 use super::site::RigidDto;
+use crate::app::Pick;
 use nalgebra::{Quaternion, Rotation3, UnitQuaternion, Vector3};
+use qrpose_site::pick::DEFAULT_MIN_GRASP_PROBABILITY;
 use qrpose_site::transform::Rigid;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -119,6 +121,34 @@ impl RobotPoseDto {
             translation_mm: Vector3::from(self.translation_mm),
         })
     }
+}
+
+/// The picking part of a pose request: the arm's pose when the image was taken and the
+/// least probability of landing within tolerance for a grasp to be `graspable`
+/// (`docs/pick.md`).
+///
+/// # Errors
+/// The flange pose's problems at `/flange_pose`; `invalid_grasp_probability` at
+/// `/min_grasp_probability` outside [0, 1].
+pub fn pick_of(
+    flange_pose: Option<&RobotPoseDto>,
+    min_grasp_probability: Option<f64>,
+) -> Result<Pick, Problem> {
+    let flange = flange_pose
+        .map(|pose| pose.to_rigid("/flange_pose"))
+        .transpose()?;
+    let min = min_grasp_probability.unwrap_or(DEFAULT_MIN_GRASP_PROBABILITY);
+    if !(0.0..=1.0).contains(&min) {
+        return Err(Problem::new(
+            ErrorCode::InvalidGraspProbability,
+            format!("min_grasp_probability must be between 0 and 1, got {min}"),
+        )
+        .with_field("/min_grasp_probability"));
+    }
+    Ok(Pick {
+        flange,
+        min_grasp_probability: min,
+    })
 }
 
 /// A rigid transform in a named parent frame: p_parent = R·p_child + t.

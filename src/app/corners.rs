@@ -61,6 +61,7 @@ pub fn estimate_corners(
     let frames = SiteFrames {
         site: setup.site.as_deref(),
         camera: setup.site_camera.as_ref(),
+        pick: setup.pick,
     };
     let prior = setup.prior.and_then(|p| p.for_code(&frames, payload));
     let model = marker.object_points();

@@ -136,6 +136,7 @@ fn answer_of_located(
     let frames = SiteFrames {
         site: pose.site.as_deref(),
         camera: pose.site_camera.as_ref(),
+        pick: pose.pick,
     };
     let markers: Vec<MarkerAnswer> = located
         .markers

@@ -54,7 +54,7 @@ pub use hand_eye::{
 };
 pub use image::{ImageAnswer, ImageError, MarkerAnswer, Timing, estimate_decoded, estimate_image};
 pub use prior::Prior;
-pub use setup::{DetectSetup, ImageLimits, ImageSetup, Setup, SizeResolver, Sizing};
+pub use setup::{DetectSetup, ImageLimits, ImageSetup, Pick, Setup, SizeResolver, Sizing};
 pub use track::{
     DEFAULT_FULL_SEARCH_EVERY, FrameIn, FullReason, Search, TrackAnswer, TrackSession, TrackSetup,
     TrackSetupError,

@@ -11,6 +11,8 @@ use qrpose_core::geometry::{camera::Camera, marker::Marker};
 use qrpose_detect::decode::DecodeLimits;
 use qrpose_detect::pipeline::{MarkerSizes, Options, Points};
 use qrpose_detect::{Budget, DetectorChoice, Effort, cancel::CancelFlag};
+use qrpose_site::pick::DEFAULT_MIN_GRASP_PROBABILITY;
+use qrpose_site::transform::Rigid;
 use qrpose_site::{Site, SiteCamera, SizeSource};
 use std::sync::Arc;
 use std::time::Duration;
@@ -46,6 +48,27 @@ pub struct Setup {
     pub solver: ValidSolver,
     /// An expected orientation that decides the planar ambiguity.
     pub prior: Option<Prior>,
+    /// The arm's pose when the image was taken, and the bar a grasp must clear.
+    pub pick: Pick,
+}
+
+/// What picking takes from a request (`docs/pick.md`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pick {
+    /// T_robot←flange when the image was taken (`flange_pose`): with a camera on the
+    /// flange, the robot frame exists only with it.
+    pub flange: Option<Rigid>,
+    /// The least probability of landing within tolerance for a grasp to be `graspable`.
+    pub min_grasp_probability: f64,
+}
+
+impl Default for Pick {
+    fn default() -> Self {
+        Self {
+            flange: None,
+            min_grasp_probability: DEFAULT_MIN_GRASP_PROBABILITY,
+        }
+    }
 }
 
 impl Setup {

@@ -11,7 +11,7 @@ use qrpose::api::{
     image::{ImageQuery, ImageResponse, respond},
     problem::{Problem, parse_json},
 };
-use qrpose::app::ImageLimits;
+use qrpose::app::{ImageLimits, ImageSetup, Site};
 use qrpose::detect::cancel::CancelFlag;
 use qrpose::geometry::camera::Camera;
 use std::io::{Read, Write};
@@ -41,6 +41,15 @@ pub struct EstimateArgs {
     /// marker size omitted from the request comes from its rules for the payload.
     #[arg(long, value_name = "FILE")]
     pub site: Option<PathBuf>,
+    /// With `--image`: the arm's pose when the photo was taken (T_robot←flange, as the
+    /// controller reports it), a JSON object as in a request's `flange_pose`
+    /// (`{"translation_mm": [...], "quaternion_wxyz": [...]}`; docs/pick.md).
+    #[arg(long, value_name = "JSON", requires = "image")]
+    pub flange_pose: Option<String>,
+    /// With `--image`: the least probability of landing within tolerance for a grasp to be
+    /// `graspable` (default 0.95).
+    #[arg(long, value_name = "P", requires = "image")]
+    pub min_grasp_probability: Option<f64>,
     /// The camera, marker, solver and detector of `--image`: the query parameters of
     /// `POST /v1/pose/image`, one flag each, under the same names (`fx_px` is `--fx-px`).
     #[command(flatten)]
@@ -96,6 +105,34 @@ pub fn print_json<T: serde::Serialize>(value: &T, pretty: bool) -> ExitCode {
     }
 }
 
+/// The setup of `estimate --image`: the flags as the query parameters, with the arm's pose
+/// and the grasp bar as a request part would give them.
+fn image_setup(args: &EstimateArgs, site: Option<Arc<Site>>) -> Result<ImageSetup, Problem> {
+    let mut request = args
+        .params
+        .clone()
+        .into_request()
+        .map_err(ImageQuery::problem_in_query_terms)?;
+    request.flange_pose = args
+        .flange_pose
+        .as_deref()
+        .map(|json| parse_json(json.as_bytes()).map_err(|p| p.with_field("/flange_pose")))
+        .transpose()?;
+    request.min_grasp_probability = args.min_grasp_probability;
+    request.setup(&ImageLimits::default(), site).map_err(|problem| {
+        // The picking flags are named by their request pointers; the rest as parameters.
+        let picking = problem
+            .field
+            .as_deref()
+            .is_some_and(|f| f.starts_with("/flange_pose") || f == "/min_grasp_probability");
+        if picking {
+            problem
+        } else {
+            ImageQuery::problem_in_query_terms(problem)
+        }
+    })
+}
+
 /// Runs `estimate --image`.
 fn run_image(path: &PathBuf, args: &EstimateArgs) -> ExitCode {
     let bytes = match std::fs::read(path) {
@@ -109,7 +146,7 @@ fn run_image(path: &PathBuf, args: &EstimateArgs) -> ExitCode {
         Ok(site) => site.map(Arc::new),
         Err(code) => return code,
     };
-    let setup = match args.params.clone().setup(&ImageLimits::default(), site) {
+    let setup = match image_setup(args, site) {
         Ok(setup) => setup,
         Err(problem) => return report_problem(&problem),
     };

@@ -19,6 +19,7 @@ mod image;
 mod image_bad_inputs;
 mod metrics;
 mod openapi;
+mod pick;
 mod routing;
 mod saturation;
 mod shutdown;

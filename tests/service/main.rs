@@ -10,6 +10,7 @@ mod annotated;
 mod cli;
 mod cli_calibrate;
 mod cli_hand_eye;
+mod cli_pick;
 mod curl_suite;
 mod fd_exhaustion;
 mod generated_clients;

@@ -505,6 +505,40 @@ fn the_minimum_probability_is_the_bar_and_is_checked() {
 }
 
 #[test]
+fn a_pose_that_may_be_the_mirror_has_its_probability_discounted_and_is_not_graspable() {
+    let site = site();
+    let (_, rule) = site.object_for("SKU-1").expect("a rule");
+    let fixed = site
+        .camera("fixed")
+        .and_then(|c| c.camera_mount)
+        .expect("mount");
+    let in_robot = camera_in_robot(Some(&fixed), None);
+    // A tight estimate: graspable on its own.
+    let marker = marker_in_camera(0.05);
+    let sure = plan_pick(&marker, rule, in_robot.as_ref(), &PickOptions::default()).expect("plan");
+    let p = sure.grasps[0].within_tolerance_probability.expect("p");
+    assert!(p > 0.99 && sure.grasps[0].graspable, "{p}");
+    for mirror in [0.04, 0.3] {
+        let opts = PickOptions {
+            alternative_probability: mirror,
+            ..PickOptions::default()
+        };
+        let plan = plan_pick(&marker, rule, in_robot.as_ref(), &opts).expect("plan");
+        let q = plan.grasps[0].within_tolerance_probability.expect("p");
+        assert!((q - p * (1.0 - mirror)).abs() < 1e-12, "{q} against {p}");
+        assert_eq!(plan.grasps[0].graspable, q >= 0.95, "mirror {mirror}");
+    }
+    let opts = PickOptions {
+        alternative_probability: 1.5,
+        ..PickOptions::default()
+    };
+    assert!(matches!(
+        plan_pick(&marker, rule, in_robot.as_ref(), &opts),
+        Err(PickError::AlternativeProbability { .. })
+    ));
+}
+
+#[test]
 fn the_pre_grasp_lies_back_along_the_approach_axis() {
     let site = site();
     let (_, rule) = site.object_for("SKU-1").expect("a rule");

@@ -38,6 +38,7 @@ use super::frames::PriorDto;
 use super::problem::{ErrorCode, Problem};
 use super::refusal::problem_from_image_error;
 use super::request::{CameraDto, CornersUnit, MarkerDto, SolverDto};
+use super::robot::{RobotPoseDto, pick_of};
 use crate::app::{self, DetectSetup, ImageSetup, Setup, Sizing};
 use crate::detect::{Backend, DetectorChoice, Effort, cancel::CancelFlag, pipeline::Points};
 use crate::estimate::Method;
@@ -173,6 +174,16 @@ pub struct ImageRequest {
     /// each code (`reprojection` only).
     #[serde(default)]
     pub prior: Option<PriorDto>,
+    /// The arm's pose (T_robot←flange, as the controller reports it) when the photo was
+    /// taken: with a camera on the flange (`mount.parent: flange`), poses in the robot frame
+    /// exist only with it (`docs/pick.md`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flange_pose: Option<RobotPoseDto>,
+    /// The least probability of landing within tolerance for a grasp to be `graspable`
+    /// (default 0.95).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(minimum = 0, maximum = 1, example = 0.95)]
+    pub min_grasp_probability: Option<f64>,
 }
 
 /// The default `points` with `method = reprojection`, chosen from the accuracy benchmark
@@ -235,6 +246,7 @@ impl ImageRequest {
                 sizing,
                 solver,
                 prior,
+                pick: pick_of(self.flange_pose.as_ref(), self.min_grasp_probability)?,
             },
             detect: DetectSetup {
                 detector,

@@ -193,7 +193,11 @@ impl ImageQuery {
             points: self.points,
             effort: self.effort.unwrap_or_default(),
             max_detect_ms: self.max_detect_ms,
+            // A prior and a flange pose are structured: they travel in a JSON body or a
+            // multipart `request` part, not in the flat query.
             prior: None,
+            flange_pose: None,
+            min_grasp_probability: None,
         })
     }
 

@@ -2,7 +2,7 @@
 //! refinement and pose, and the time per stage.
 
 use super::PointsDto;
-use crate::api::frames::{FramePoseDto, LocalizationDto};
+use crate::api::frames::LocalizationDto;
 use crate::api::problem::Problem;
 use crate::api::refusal::problem_from_marker_error;
 use crate::api::response::PoseResponse;
@@ -187,12 +187,10 @@ fn marker_pose_or_problem(
         Points::Finders => "finder_corners_px",
     };
     let pointer = format!("/markers/{index}/{list}");
-    let frames = (
-        m.frames.in_robot.as_ref().map(FramePoseDto::from),
-        m.frames.in_world.as_ref().map(FramePoseDto::from),
-    );
-    let pose = PoseResponse::try_new(estimate, camera, marker, m.estimate_us, &pointer)
-        .and_then(|pose| pose.with_site((*source).into(), frames, m.resolved_by_prior, &pointer));
+    let pose =
+        PoseResponse::try_new(estimate, camera, marker, m.estimate_us, &pointer).and_then(|pose| {
+            pose.with_site((*source).into(), &m.frames, m.resolved_by_prior, &pointer)
+        });
     match pose {
         Ok(pose) => (Some(pose), None),
         Err(problem) => (None, Some(problem)),

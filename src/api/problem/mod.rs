@@ -135,6 +135,8 @@ pub enum ErrorCode {
     /// 422: the motions between a hand-eye calibration's views turn about fewer than two
     /// distinct axes: the camera's mount cannot be told.
     DegenerateMotion,
+    /// 422: `min_grasp_probability` outside [0, 1] (`docs/pick.md`).
+    InvalidGraspProbability,
     /// 426: `GET /v1/stream` asked for without a WebSocket upgrade.
     UpgradeRequired,
     /// 401: the route needs a bearer token (`--auth-file`) and the request has none, or one
@@ -205,6 +207,7 @@ impl ErrorCode {
             InvalidRobotPose => "Invalid robot pose",
             FlangePosesMismatch => "Not one flange pose per photo",
             DegenerateMotion => "Degenerate motion",
+            InvalidGraspProbability => "Invalid grasp probability",
             NoSite => "No site loaded",
             InvalidSite => "Invalid site file",
             PayloadTooLarge => "Payload too large",

@@ -16,7 +16,10 @@
 //! - pre-grasp: T_robot←grasp · Trans(0, 0, −approach_mm).
 //!
 //! Each grasp's probability is [`probability::within_tolerance_probability`] of its pose in
-//! the robot frame (the tolerance is the robot's), or in the camera frame when there is none.
+//! the robot frame (the tolerance is the robot's), or in the camera frame when there is none,
+//! times the probability that the code's pose is not the planar ambiguity's mirror
+//! ([`PickOptions::alternative_probability`]): a pose the estimate cannot tell from its
+//! mirror is never graspable, however small its covariance.
 //! A grasp is graspable only when that probability reaches the minimum and no
 //! [`PickReason`] applies.
 
@@ -69,6 +72,10 @@ pub struct PickOptions {
     pub pose_ambiguous: bool,
     /// The estimate did not converge.
     pub not_converged: bool,
+    /// The probability that the code's true pose is the planar ambiguity's other one (the
+    /// mirror, tens of degrees away: no grasp planned from this pose lands within tolerance
+    /// then), in [0, 1]; 0 when there is none.
+    pub alternative_probability: f64,
 }
 
 impl Default for PickOptions {
@@ -77,6 +84,7 @@ impl Default for PickOptions {
             min_grasp_probability: DEFAULT_MIN_GRASP_PROBABILITY,
             pose_ambiguous: false,
             not_converged: false,
+            alternative_probability: 0.0,
         }
     }
 }
@@ -87,6 +95,12 @@ pub enum PickError {
     /// `min_grasp_probability` outside [0, 1] (or NaN).
     #[error("min_grasp_probability must be between 0 and 1, got {value}")]
     MinGraspProbability {
+        /// The value given.
+        value: f64,
+    },
+    /// `alternative_probability` outside [0, 1] (or NaN).
+    #[error("alternative_probability must be between 0 and 1, got {value}")]
+    AlternativeProbability {
         /// The value given.
         value: f64,
     },
@@ -184,6 +198,10 @@ pub fn plan_pick(
     if !(0.0..=1.0).contains(&min) {
         return Err(PickError::MinGraspProbability { value: min });
     }
+    let mirror = options.alternative_probability;
+    if !(0.0..=1.0).contains(&mirror) {
+        return Err(PickError::AlternativeProbability { value: mirror });
+    }
     let object_in_marker = rule.marker_in_object.inverse();
     let pose = then_fixed(marker_in_camera, &object_in_marker);
     let pose_in_robot = camera_in_robot.map(|c| compose(c, &pose));
@@ -200,9 +218,12 @@ pub fn plan_pick(
                     .map(|a| then_fixed(g, &pre_grasp_offset(a)))
             });
             let judged = in_robot.as_ref().unwrap_or(&in_camera);
+            // A mixture: the Gaussian about this pose with weight 1 − p(mirror); the mirror
+            // pose, tens of degrees off, is never within a gripper's tolerance.
             let probability = judged
                 .covariance
-                .and_then(|c| within_tolerance_probability(&c, &grasp.tolerance));
+                .and_then(|c| within_tolerance_probability(&c, &grasp.tolerance))
+                .map(|p| p * (1.0 - mirror));
             let reasons = reasons_for(in_robot.is_some(), probability, options);
             GraspPlan {
                 name: grasp.name.clone(),
