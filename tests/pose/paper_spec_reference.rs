@@ -94,6 +94,8 @@ proptest! {
             payload: None,
             solver: SolverDto { method: MethodDto::Paper, initial_z_mm: Some(z0), gain: k, tolerance_mm: e_d, max_iterations: n_max, ..SolverDto::default() },
             prior: None,
+            flange_pose: None,
+            min_grasp_probability: None,
         };
         let ours = estimate_corners(&request, None).map_err(|p| TestCaseError::fail(p.detail))?;
         // Same normalised inputs as the service sees them (x' / f).

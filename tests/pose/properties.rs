@@ -193,6 +193,8 @@ fn solve(s: &Scenario, method: MethodDto) -> Result<(PoseResponse, MarkerToCamer
             ..SolverDto::default()
         },
         prior: None,
+        flange_pose: None,
+        min_grasp_probability: None,
     };
     let response = estimate_corners(&request, None)
         .map_err(|p| TestCaseError::fail(format!("{}: {}", p.title, p.detail)))?;
