@@ -6,12 +6,14 @@
 //! stream, flags of `qrpose track`). The same schemas are published in
 //! `openapi/asyncapi.json`.
 
-use super::frames::PriorDto;
+use super::frames::{FramePoseDto, PriorDto};
 use super::image::ImageQuery;
 use super::image::ImageResponse;
+use super::pick::ObjectDto;
 use super::problem::ErrorCode;
 use super::problem::Problem;
 use super::response::{COVARIANCE_ORDER, CovarianceDto, RotationDto, Vec3Mm};
+use super::robot::RobotPoseDto;
 use crate::app::{DEFAULT_FULL_SEARCH_EVERY, ImageLimits, ImageSetup, TrackAnswer, TrackSetup};
 use qrpose_site::Site;
 use qrpose_track::TrackerParams;
@@ -143,6 +145,11 @@ pub struct FrameMetaDto {
     /// An expected orientation for this frame's codes, as in `POST /v1/pose/image`.
     #[serde(default)]
     pub prior: Option<PriorDto>,
+    /// The arm's pose (T_robot←flange) when this frame was captured, as in
+    /// `POST /v1/pose/image`: with a camera on the flange, the frame's codes and each
+    /// track's product are in the robot frame only with it (`docs/pick.md`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flange_pose: Option<RobotPoseDto>,
 }
 
 /// Which frame an answer is for.
@@ -189,6 +196,19 @@ pub struct TrackPoseDto {
     pub velocity_mm_per_s: Vec3Mm,
 }
 
+/// A track's code in the robot frame, fused over its latest frames (`docs/pick.md`,
+/// Streams).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TrackInRobotDto {
+    /// T_robot←marker: the fused pose of the code's centre, with the covariance of the
+    /// sharpest single frame fused (not the fusion's own: the frames share errors).
+    pub pose: FramePoseDto,
+    /// Robot-frame poses fused (at most 30).
+    pub frames_fused: usize,
+    /// The product the payload names, planned from the fused pose; null without a rule.
+    pub object: Option<ObjectDto>,
+}
+
 /// One live track.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct TrackDto {
@@ -205,6 +225,10 @@ pub struct TrackDto {
     pub pose: TrackPoseDto,
     /// The track, not the single frame, chose between the two planar poses in this frame.
     pub ambiguity_resolved: bool,
+    /// The code in the robot frame, fused over the track's frames, and its product; null
+    /// when the camera's pose in the robot frame is unknown on this frame (no mount, or a
+    /// camera on the flange and no `flange_pose`).
+    pub in_robot: Option<TrackInRobotDto>,
 }
 
 /// The answer to one frame: the `POST /v1/pose/image` answer for it (each marker with its
@@ -260,6 +284,7 @@ impl From<&TrackReport> for TrackDto {
                 velocity_mm_per_s: p.velocity_mm_s.into(),
             },
             ambiguity_resolved: t.ambiguity_resolved,
+            in_robot: None,
         }
     }
 }
@@ -274,7 +299,19 @@ impl StreamAnswer {
         Self {
             frame,
             response,
-            tracks: answer.tracks.iter().map(TrackDto::from).collect(),
+            tracks: answer
+                .tracks
+                .iter()
+                .map(|t| {
+                    let mut dto = TrackDto::from(t);
+                    dto.in_robot = answer.in_robot.get(&t.id).map(|r| TrackInRobotDto {
+                        pose: FramePoseDto::from(&r.marker),
+                        frames_fused: r.frames_fused,
+                        object: r.object.as_ref().map(ObjectDto::from),
+                    });
+                    dto
+                })
+                .collect(),
         }
     }
 }

@@ -11,23 +11,44 @@
 //! predicted with confidence, or predicted partly outside the image (leaving the view: no
 //! search can read it), is `coasting`.
 //! So a code that enters the view is found within `full_search_every` frames.
+//!
+//! **In the robot's frame** (`docs/pick.md`, Streams): with a camera whose pose in the robot
+//! frame is known on each frame (a mount, and for a camera on the flange each frame's
+//! `flange_pose`), a product stays still while the camera moves. Each track then also keeps
+//! its code's last [`MAX_ROBOT_FRAMES`] poses in the robot frame and fuses them, weighted by
+//! their covariances ([`qrpose_site::localize::fuse`], whose χ² gate flags a frame that
+//! disagrees); the product and its grasps are planned from the fused pose, so a grasp
+//! sharpens as the arm approaches. The fused pose is given the covariance of the sharpest
+//! single frame, not the fusion's own: the frames of one approach share errors (the print,
+//! the lens) that averaging does not remove, and a grasp's probability must not claim what
+//! the frames cannot give.
 
 use super::image::{ImageAnswer, ImageError, MarkerAnswer, estimate_decoded};
 use super::prior::Prior;
 use super::setup::ImageSetup;
+use nalgebra::Matrix6;
+use qrpose_core::estimate::reprojection::AMBIGUITY_PROBABILITY_THRESHOLD;
 use qrpose_core::geometry::camera::Camera;
 use qrpose_core::geometry::marker::CornerOrder;
 use qrpose_core::geometry::quad::ImageQuad;
 use qrpose_detect::cancel::CancelFlag;
 use qrpose_detect::decode::{self, GrayImage};
+use qrpose_site::localize::fuse;
+use qrpose_site::pick::{ObjectPlan, PickOptions, camera_in_robot, plan_pick};
+use qrpose_site::transform::{PoseWithCovariance, Rigid, fixed_then};
 use qrpose_track::{
     Measurement, Outcome, PredictedRegion, TrackReport, TrackStatus, Tracker, TrackerParams,
 };
+use std::collections::{HashMap, VecDeque};
 use std::time::Instant;
 
 /// The default cadence of the full-frame search on frames with live tracks, frames: a new
 /// code appears within this many frames (a third of a second at 30 fps).
 pub const DEFAULT_FULL_SEARCH_EVERY: u32 = 10;
+
+/// How many of a track's latest robot-frame poses are fused (module docs): a second at
+/// 30 fps, and a bound on what a session keeps.
+pub const MAX_ROBOT_FRAMES: usize = 30;
 
 /// The corner noise the tracker fuses refined corners with, px per coordinate: the detector's
 /// measured corner error on the rendered accuracy set (docs/detection.md, Current figures:
@@ -79,6 +100,19 @@ pub struct FrameIn<'a> {
     pub capture_time_ms: f64,
     /// This frame's prior; `None` for the setup's.
     pub prior: Option<Prior>,
+    /// T_robot←flange when this frame was captured (`flange_pose`); `None`: the setup's.
+    pub flange: Option<Rigid>,
+}
+
+/// A track's code in the robot frame, fused over its latest frames, and its product.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackInRobot {
+    /// T_robot←marker: the fused pose, with the sharpest single frame's covariance.
+    pub marker: PoseWithCovariance,
+    /// Robot-frame poses fused.
+    pub frames_fused: usize,
+    /// The product the payload names, planned from the fused pose; `None` without a rule.
+    pub object: Option<ObjectPlan>,
 }
 
 /// A frame's answer: the photo's answer, each code's track and every live track.
@@ -92,6 +126,9 @@ pub struct TrackAnswer {
     pub tracks: Vec<TrackReport>,
     /// How the frame was searched.
     pub search: Search,
+    /// Per track id, its code in the robot frame (tracks whose camera is in the robot
+    /// frame on this frame).
+    pub in_robot: HashMap<String, TrackInRobot>,
 }
 
 /// A stream session's state: its setup and tracks.
@@ -99,6 +136,8 @@ pub struct TrackAnswer {
 pub struct TrackSession {
     setup: TrackSetup,
     tracker: Tracker,
+    /// Per track id, its code's latest robot-frame poses.
+    robot_frames: HashMap<String, VecDeque<PoseWithCovariance>>,
     /// Frames since the last full-frame search.
     since_full: u32,
     /// The next frame searches the whole frame (the first one, or a track was lost).
@@ -129,6 +168,7 @@ impl TrackSession {
         Ok(Self {
             setup,
             tracker,
+            robot_frames: HashMap::new(),
             since_full: 0,
             full_next: true,
         })
@@ -157,6 +197,9 @@ impl TrackSession {
         if input.prior.is_some() {
             setup.pose.prior = input.prior;
         }
+        if input.flange.is_some() {
+            setup.pose.pick.flange = input.flange;
+        }
         let t_ms = input.capture_time_ms;
         let (answer, search) = self.search(&setup, &image, decode_ms, t_ms, cancel)?;
         let measurements: Vec<(usize, Measurement)> = answer
@@ -175,6 +218,7 @@ impl TrackSession {
                     tracks: self.tracker.tracks(),
                     image: answer,
                     search,
+                    in_robot: HashMap::new(),
                 });
             }
         };
@@ -196,12 +240,80 @@ impl TrackSession {
             t.status == TrackStatus::Lost
                 && lost_in_view(t, &setup.pose.camera, width_px, height_px)
         });
+        let in_robot = self.fuse_in_robot(&setup, &answer, &track_ids, &update.tracks);
         Ok(TrackAnswer {
             image: answer,
             track_ids,
             tracks: update.tracks,
             search,
+            in_robot,
         })
+    }
+
+    /// Adds each tracked code's robot-frame pose of this frame to its track's, forgets the
+    /// lost tracks', and fuses each track's (module docs).
+    fn fuse_in_robot(
+        &mut self,
+        setup: &ImageSetup,
+        answer: &ImageAnswer,
+        track_ids: &[Option<String>],
+        tracks: &[TrackReport],
+    ) -> HashMap<String, TrackInRobot> {
+        for (marker, id) in answer.markers.iter().zip(track_ids) {
+            let (Some(id), Some(pose)) = (id, marker.frames.in_robot) else {
+                continue;
+            };
+            if pose.covariance.is_none() {
+                continue;
+            }
+            let frames = self.robot_frames.entry(id.clone()).or_default();
+            if frames.len() == MAX_ROBOT_FRAMES {
+                frames.pop_front();
+            }
+            frames.push_back(pose);
+        }
+        for track in tracks {
+            if track.status == TrackStatus::Lost {
+                self.robot_frames.remove(&track.id);
+            }
+        }
+        // The camera's pose in the robot frame now, taken as exact: the frames' poses carry
+        // the mount's uncertainty already.
+        let camera_now = setup.pose.site_camera.as_ref().and_then(|c| {
+            camera_in_robot(c.camera_mount.as_ref(), setup.pose.pick.flange.as_ref())
+        });
+        tracks
+            .iter()
+            .filter(|t| t.status != TrackStatus::Lost)
+            .filter_map(|track| {
+                let frames = self.robot_frames.get(&track.id)?;
+                let marker = fused(frames)?;
+                let object = camera_now.and_then(|camera| {
+                    let (_, rule) = setup.pose.site.as_deref()?.object_for(&track.payload)?;
+                    let exact = PoseWithCovariance {
+                        pose: camera.pose,
+                        covariance: Some(Matrix6::zeros()),
+                    };
+                    let in_camera = fixed_then(&camera.pose.inverse(), &marker);
+                    let mirror = (1.0 - track.branch_probability).clamp(0.0, 1.0);
+                    let options = PickOptions {
+                        min_grasp_probability: setup.pose.pick.min_grasp_probability,
+                        pose_ambiguous: mirror >= AMBIGUITY_PROBABILITY_THRESHOLD,
+                        not_converged: false,
+                        alternative_probability: mirror,
+                    };
+                    plan_pick(&in_camera, rule, Some(&exact), &options).ok()
+                });
+                Some((
+                    track.id.clone(),
+                    TrackInRobot {
+                        marker,
+                        frames_fused: frames.len(),
+                        object,
+                    },
+                ))
+            })
+            .collect()
     }
 
     /// Finds the frame's codes: in the live tracks' predicted regions, or in the whole
@@ -299,4 +411,22 @@ fn measurement_of(m: &MarkerAnswer, setup: &ImageSetup) -> Option<Measurement> {
         sigma,
     )
     .ok()
+}
+
+/// The fused pose of `frames` (each with a covariance) with the sharpest frame's covariance
+/// (module docs); the frame itself when there is one.
+fn fused(frames: &VecDeque<PoseWithCovariance>) -> Option<PoseWithCovariance> {
+    let sharpest = frames
+        .iter()
+        .filter_map(|f| f.covariance)
+        .min_by(|a, b| a.trace().total_cmp(&b.trace()))?;
+    let poses: Vec<PoseWithCovariance> = frames.iter().copied().collect();
+    let pose = match poses.as_slice() {
+        [one] => one.pose,
+        _ => fuse(&poses).ok()?.pose.pose,
+    };
+    Some(PoseWithCovariance {
+        pose,
+        covariance: Some(sharpest),
+    })
 }

@@ -119,18 +119,20 @@ fn image_setup(args: &EstimateArgs, site: Option<Arc<Site>>) -> Result<ImageSetu
         .map(|json| parse_json(json.as_bytes()).map_err(|p| p.with_field("/flange_pose")))
         .transpose()?;
     request.min_grasp_probability = args.min_grasp_probability;
-    request.setup(&ImageLimits::default(), site).map_err(|problem| {
-        // The picking flags are named by their request pointers; the rest as parameters.
-        let picking = problem
-            .field
-            .as_deref()
-            .is_some_and(|f| f.starts_with("/flange_pose") || f == "/min_grasp_probability");
-        if picking {
-            problem
-        } else {
-            ImageQuery::problem_in_query_terms(problem)
-        }
-    })
+    request
+        .setup(&ImageLimits::default(), site)
+        .map_err(|problem| {
+            // The picking flags are named by their request pointers; the rest as parameters.
+            let picking = problem
+                .field
+                .as_deref()
+                .is_some_and(|f| f.starts_with("/flange_pose") || f == "/min_grasp_probability");
+            if picking {
+                problem
+            } else {
+                ImageQuery::problem_in_query_terms(problem)
+            }
+        })
 }
 
 /// Runs `estimate --image`.

@@ -5,11 +5,13 @@
 use super::estimate::report_problem;
 use clap::Args;
 use qrpose::api::image::ImageQuery;
-use qrpose::api::problem::{ErrorCode, Problem};
+use qrpose::api::problem::{ErrorCode, Problem, parse_json};
 use qrpose::api::refusal::problem_from_image_error;
+use qrpose::api::robot::RobotPoseDto;
 use qrpose::api::stream::{FrameDto, FrameIdDto, FrameProblem, StreamAnswer, TrackQuery};
 use qrpose::app::{FrameIn, ImageLimits, TrackSession};
 use qrpose::detect::cancel::CancelFlag;
+use qrpose_site::transform::Rigid;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -31,6 +33,10 @@ pub struct TrackArgs {
     /// A site file (docs/site.md): `--camera-id` names its cameras, and it sizes the codes.
     #[arg(long, value_name = "FILE")]
     pub site: Option<PathBuf>,
+    /// A JSON file: the arm's pose (T_robot←flange) when each frame was captured, an array
+    /// with one robot pose per frame in order (docs/pick.md, Streams).
+    #[arg(long, value_name = "POSES.json")]
+    pub flange_poses: Option<PathBuf>,
     /// The camera, marker, solver and detector: the query parameters of `GET /v1/stream`.
     #[command(flatten)]
     pub params: ImageQuery,
@@ -96,8 +102,12 @@ pub fn run(args: &TrackArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    let flanges = match flange_poses(args.flange_poses.as_deref(), files.len()) {
+        Ok(flanges) => flanges,
+        Err(code) => return code,
+    };
     let mut stdout = std::io::stdout().lock();
-    for (index, file) in (0u64..).zip(&files) {
+    for ((index, file), flange) in (0u64..).zip(&files).zip(flanges) {
         let capture_time_ms = f64::from(u32::try_from(index).unwrap_or(u32::MAX)) * 1e3 / args.fps;
         let frame = FrameDto {
             index,
@@ -106,7 +116,7 @@ pub fn run(args: &TrackArgs) -> ExitCode {
             dropped_before: 0,
         };
         let line = match std::fs::read(file) {
-            Ok(bytes) => answer_line(&mut session, &bytes, capture_time_ms, frame),
+            Ok(bytes) => answer_line(&mut session, &bytes, capture_time_ms, flange, frame),
             Err(e) => {
                 eprintln!("qrpose track: cannot read {}: {e}", file.display());
                 return ExitCode::FAILURE;
@@ -123,17 +133,49 @@ pub fn run(args: &TrackArgs) -> ExitCode {
     ExitCode::SUCCESS
 }
 
+/// The flange pose of each of `frames` frames from `path` (none: `None` for each).
+fn flange_poses(path: Option<&Path>, frames: usize) -> Result<Vec<Option<Rigid>>, ExitCode> {
+    let Some(path) = path else {
+        return Ok(vec![None; frames]);
+    };
+    let bytes = std::fs::read(path).map_err(|e| {
+        eprintln!("qrpose track: cannot read {}: {e}", path.display());
+        ExitCode::FAILURE
+    })?;
+    let poses: Vec<RobotPoseDto> =
+        parse_json(&bytes).map_err(|p| report_problem(&p.with_field("/flange_poses")))?;
+    if poses.len() != frames {
+        let problem = Problem::new(
+            ErrorCode::FlangePosesMismatch,
+            format!(
+                "{frames} frames and {} flange poses: give one per frame",
+                poses.len()
+            ),
+        )
+        .with_field("/flange_poses");
+        return Err(report_problem(&problem));
+    }
+    poses
+        .iter()
+        .enumerate()
+        .map(|(k, pose)| pose.to_rigid(&format!("/flange_poses/{k}")).map(Some))
+        .collect::<Result<_, _>>()
+        .map_err(|p| report_problem(&p))
+}
+
 /// One frame's JSON line: its answer, or its problem (the session goes on).
 fn answer_line(
     session: &mut TrackSession,
     bytes: &[u8],
     capture_time_ms: f64,
+    flange: Option<Rigid>,
     frame: FrameDto,
 ) -> Result<String, String> {
     let input = FrameIn {
         bytes,
         capture_time_ms,
         prior: None,
+        flange,
     };
     let json = match session.frame(&input, CancelFlag::new()) {
         Ok(answer) => serde_json::to_string(&StreamAnswer::from_answer(

@@ -5,6 +5,7 @@
 #[path = "../support/multicode.rs"]
 mod multicode;
 
+mod approach;
 mod detect_budget;
 mod path;
 mod site_photo;

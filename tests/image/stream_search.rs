@@ -88,6 +88,7 @@ fn run(session: &mut TrackSession, jpeg: &[u8], k: u32) -> TrackAnswer {
         bytes: jpeg,
         capture_time_ms: f64::from(k) * 1000.0 / FPS,
         prior: None,
+        flange: None,
     };
     session.frame(&input, CancelFlag::new()).expect("an answer")
 }

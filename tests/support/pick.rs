@@ -108,6 +108,18 @@ pub fn corners(marker_in_camera: &Isometry3<f64>) -> Value {
 
 /// A PNG of the product's code seen with the arm at `flange`.
 pub fn photo(flange: &Isometry3<f64>) -> Vec<u8> {
+    photo_with(
+        flange,
+        &Effects {
+            supersample: 3,
+            encoding: Encoding::Png,
+            ..Effects::default()
+        },
+    )
+}
+
+/// The product's code seen with the arm at `flange`, rendered with `effects`.
+pub fn photo_with(flange: &Isometry3<f64>, effects: &Effects) -> Vec<u8> {
     let marker = Marker::try_new(60.0).expect("a size");
     let in_camera = marker_in_camera(flange);
     let scene = MultiScene {
@@ -124,10 +136,27 @@ pub fn photo(flange: &Isometry3<f64>) -> Vec<u8> {
             ),
         }],
     };
-    let effects = Effects {
-        supersample: 3,
-        encoding: Encoding::Png,
-        ..Effects::default()
-    };
-    render_scene(&scene, &effects).expect("renders").encoded
+    render_scene(&scene, effects).expect("renders").encoded
+}
+
+/// T_robot←grasp of the rule's `top` grasp: the truth.
+pub fn top_grasp_in_robot() -> Isometry3<f64> {
+    object_in_robot() * iso([0.0, 0.0, 112.0], [0.0, 1.0, 0.0, 0.0])
+}
+
+/// The flange poses of an approach: the camera moves in `frames` steps from 800 mm to
+/// 250 mm of the code along a ray `tilt_deg` off the code's normal (azimuth `azimuth_deg`),
+/// looking at the code's centre.
+pub fn approach(frames: usize, tilt_deg: f64, azimuth_deg: f64) -> Vec<Isometry3<f64>> {
+    let (tilt, az) = (tilt_deg.to_radians(), azimuth_deg.to_radians());
+    let ray = Vector3::new(tilt.sin() * az.cos(), tilt.sin() * az.sin(), -tilt.cos());
+    let code = object_in_robot() * code_on_box();
+    (0..frames)
+        .map(|k| {
+            let distance_mm = 800.0 - 550.0 * k as f64 / (frames - 1).max(1) as f64;
+            let at = distance_mm * ray;
+            let look = UnitQuaternion::rotation_between(&Vector3::z(), &-at).expect("not opposite");
+            code * Isometry3::from_parts(Translation3::from(at), look) * mount().inverse()
+        })
+        .collect()
 }

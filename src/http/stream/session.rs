@@ -51,6 +51,7 @@ struct Frame {
     id: Option<FrameIdDto>,
     capture_time_ms: f64,
     prior: Option<crate::api::frames::PriorDto>,
+    flange_pose: Option<crate::api::robot::RobotPoseDto>,
     bytes: Bytes,
     received: Instant,
 }
@@ -256,6 +257,7 @@ async fn read(
                     id: m.frame_id,
                     capture_time_ms,
                     prior: m.prior,
+                    flange_pose: m.flange_pose,
                     bytes,
                     received,
                 };
@@ -343,6 +345,15 @@ async fn answer_frame(
         Some(Ok(p)) => Some(p),
         None => None,
     };
+    let flange = match frame
+        .flange_pose
+        .as_ref()
+        .map(|pose| pose.to_rigid("/flange_pose"))
+    {
+        Some(Err(problem)) => return (refused(frame_answer, problem), None),
+        Some(Ok(f)) => Some(f),
+        None => None,
+    };
     let max_pixels = state.settings.max_image_pixels;
     let pixels = admission_pixels(&frame.bytes, max_pixels);
     let session = Arc::clone(session);
@@ -353,6 +364,7 @@ async fn answer_frame(
             bytes: &frame.bytes,
             capture_time_ms: frame.capture_time_ms,
             prior,
+            flange,
         };
         match session.frame(&input, cancel) {
             Ok(answer) => {
