@@ -39,7 +39,7 @@ pub const CLOSE_TRY_AGAIN_LATER: u16 = 1013;
 #[derive(Debug)]
 enum Item {
     /// A frame.
-    Frame(Frame),
+    Frame(Box<Frame>),
     /// A text message that could not be used: its problem, answered in its place.
     Refused(Box<FrameProblem>),
 }
@@ -262,7 +262,7 @@ async fn read(
                     received,
                 };
                 next_index += 1;
-                let dropped = waiting.push(Item::Frame(frame), limits.frames_in_flight);
+                let dropped = waiting.push(Item::Frame(Box::new(frame)), limits.frames_in_flight);
                 metrics.frames_dropped.inc_by(dropped);
             }
             Message::Ping(_) | Message::Pong(_) => {}
@@ -304,7 +304,8 @@ async fn answer_frames(
             }
             Item::Frame(frame) => {
                 let received = frame.received;
-                let (json, counts) = answer_frame(frame, dropped, &session, &state, &metrics).await;
+                let (json, counts) =
+                    answer_frame(*frame, dropped, &session, &state, &metrics).await;
                 if let Some(counts) = counts {
                     metrics.tracks_changed(tracks_before, counts);
                     tracks_before = counts;
