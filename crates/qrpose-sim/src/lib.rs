@@ -6,6 +6,7 @@ pub mod dataset;
 pub mod evaluate;
 pub mod grid;
 pub mod heatmap;
+pub mod pick;
 pub mod report;
 pub mod run;
 pub mod tables;

@@ -290,6 +290,53 @@ mod tests {
     }
 
     #[test]
+    fn compose_adds_both_factors_jacobians_as_central_differences_give_them() {
+        let a = pose(0.4, -0.7, 1.9, [350.0, -80.0, 620.0]);
+        let t = pose(-0.2, 0.3, 0.5, [40.0, 110.0, 700.0]);
+        let sigma = |scale: f64| {
+            let l = Matrix6::from_fn(|i, k| {
+                if i >= k {
+                    scale * (0.5 + 0.1 * (i + 2 * k) as f64)
+                } else {
+                    0.0
+                }
+            });
+            l * l.transpose()
+        };
+        let (sigma_a, sigma_t) = (sigma(0.002), sigma(0.01));
+        let j_a = numeric_jacobian(&a, |x| x.then(&t));
+        let j_t = numeric_jacobian(&t, |x| a.then(x));
+        let expected = j_a * sigma_a * j_a.transpose() + j_t * sigma_t * j_t.transpose();
+        let out = compose(
+            &PoseWithCovariance {
+                pose: a,
+                covariance: Some(sigma_a),
+            },
+            &PoseWithCovariance {
+                pose: t,
+                covariance: Some(sigma_t),
+            },
+        );
+        let got = out.covariance.expect("propagated");
+        assert!(
+            (got - expected).amax() < 1e-6 * expected.amax(),
+            "{got} vs {expected}"
+        );
+        assert!((out.pose.translation_mm - a.then(&t).translation_mm).norm() < 1e-12);
+        // Either factor without a covariance: none.
+        let unknown = PoseWithCovariance {
+            pose: t,
+            covariance: None,
+        };
+        let known = PoseWithCovariance {
+            pose: a,
+            covariance: Some(sigma_a),
+        };
+        assert!(compose(&known, &unknown).covariance.is_none());
+        assert!(compose(&unknown, &known).covariance.is_none());
+    }
+
+    #[test]
     fn a_full_covariance_propagates_as_j_sigma_jt() {
         let p = pose(0.1, 0.5, -0.3, [10.0, 20.0, 600.0]);
         let m = pose(0.0, 0.2, 1.5, [100.0, 0.0, 300.0]);

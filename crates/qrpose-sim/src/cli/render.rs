@@ -2,9 +2,12 @@
 //! ground truth (corners px in qr order, finder corners, pose, camera) as JSON on stdout;
 //! or of several codes, from a JSON scene file (`--scene`) or drawn at random
 //! (`--random-scene`), with the ground truth of every code under `codes`; or a rendered
-//! video (`--sequence`, module `sequence`): frames, their truth, and the sequence file.
+//! video (`--sequence`, module `sequence`): frames, their truth, and the sequence file; or
+//! photos of products from a camera on a robot's flange (`--pick-scene`, `--pick-study`,
+//! module `pick`).
 
 mod camera;
+mod pick;
 mod sequence;
 
 use super::Failure;
@@ -51,12 +54,15 @@ const DEFAULT_JPEG_QUALITY: u8 = 90;
 #[command(after_long_help = SCENE_HELP)]
 pub struct RenderArgs {
     /// Output image; `.png` writes PNG, anything else JPEG at --jpeg-quality. With
-    /// --sequence, the output directory (created if missing).
+    /// --sequence, --pick-scene or --pick-study, the output directory (created if missing).
     #[arg(long)]
     pub out: PathBuf,
     // --sequence and its flags: a rendered video instead of a photo.
     #[command(flatten)]
     pub video: sequence::SequenceArgs,
+    // --pick-scene / --pick-study: photos of products from a camera on a robot's flange.
+    #[command(flatten)]
+    pub pick: pick::PickArgs,
     /// Render the codes of a JSON scene file instead of one code from the flags below
     /// (format in the long help, `--help`); the effect flags still apply. The JSON printed
     /// lists every code under "codes".
@@ -412,6 +418,9 @@ pub(super) fn run(args: &RenderArgs) -> Result<Value, Failure> {
         seed: args.seed.unwrap_or(defaults.seed),
         ..defaults
     };
+    if args.pick.requested() {
+        return pick::run(args, &effects);
+    }
     if args.scene.is_some() || args.random_scene.is_some() {
         return run_multi(args, &effects);
     }
