@@ -253,6 +253,7 @@ fn run(name: &str, max_frames: Option<u32>) -> Tally {
             bytes: &jpeg,
             capture_time_ms: frame.truth.capture_time_ms,
             prior: None,
+            flange: None,
         };
         let started = Instant::now();
         let answer = session.frame(&input, CancelFlag::new()).expect("an answer");
