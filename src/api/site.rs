@@ -6,6 +6,7 @@ use super::camera::CameraDto;
 use crate::geometry::euler::quaternion_wxyz;
 use qrpose_site::calibration::CalibrationFormat;
 use qrpose_site::file::Matcher;
+use qrpose_site::mount::CameraMount;
 use qrpose_site::transform::Rigid;
 use qrpose_site::{CameraSource, Site, SiteCamera};
 use serde::{Deserialize, Serialize};
@@ -26,6 +27,46 @@ impl From<&Rigid> for RigidDto {
         Self {
             translation_mm: r.translation_mm.into(),
             quaternion_wxyz: quaternion_wxyz(&r.rotation),
+        }
+    }
+}
+
+/// One standard deviation of a mount about the camera's own axes.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct MountStdDto {
+    /// About x, y, z, degrees.
+    pub rotation_deg: [f64; 3],
+    /// Along x, y, z, mm.
+    pub translation_mm: [f64; 3],
+}
+
+/// A camera's mount: T_parent←camera (p_parent = R·p_camera + t).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct MountDto {
+    /// `robot` or `flange`.
+    pub parent: String,
+    /// t, mm.
+    pub translation_mm: [f64; 3],
+    /// R as a unit quaternion (w, x, y, z), w ≥ 0.
+    pub quaternion_wxyz: [f64; 4],
+    /// Its standard deviation, when the site gives one.
+    pub std: Option<MountStdDto>,
+}
+
+impl From<&CameraMount> for MountDto {
+    fn from(m: &CameraMount) -> Self {
+        let RigidDto {
+            translation_mm,
+            quaternion_wxyz,
+        } = RigidDto::from(&m.pose);
+        Self {
+            parent: m.parent.as_str().to_owned(),
+            translation_mm,
+            quaternion_wxyz,
+            std: m.std.map(|s| MountStdDto {
+                rotation_deg: s.rotation_rad.map(f64::to_degrees).into(),
+                translation_mm: s.translation_mm.into(),
+            }),
         }
     }
 }
@@ -51,8 +92,10 @@ pub struct SiteCameraDto {
     pub camera: CameraDto,
     /// The calibrated image size [width, height], px, when the calibration file gives it.
     pub image_size_px: Option<[u32; 2]>,
-    /// The camera's pose in the robot frame (p_robot = R·p_camera + t), or null.
-    pub mount: Option<RigidDto>,
+    /// The camera's mount as the site file gives it: its `parent` (`robot`: fixed on the
+    /// robot; `flange`: on the arm's flange, in the robot frame only with a request's
+    /// `flange_pose`), T_parent←camera and its standard deviation; null without one.
+    pub mount: Option<MountDto>,
 }
 
 /// One size rule: exactly one of `payload`, `prefix`, `pattern`.
@@ -131,7 +174,7 @@ impl From<&SiteCamera> for SiteCameraDto {
             },
             camera: CameraDto::from(cam),
             image_size_px: c.image_size_px.map(|(w, h)| [w, h]),
-            mount: c.mount.as_ref().map(RigidDto::from),
+            mount: c.camera_mount.as_ref().map(MountDto::from),
         }
     }
 }
