@@ -7,8 +7,14 @@
 //! frame: x to the symbol's right, y down the symbol, z into the printed face). The axes are
 //! the pose projected through the camera, distortion included, so they stand where the pose
 //! says, not where the corners are. A code without a pose gets its outline, marks and label.
+//!
+//! A code whose payload names a product of the site (`pose.object`, docs/pick.md) also gets
+//! the product's box (its twelve edges, cyan) and each grasp's approach axis: a stroke along
+//! the grasp frame's z ending at the grasp point, half the box's longest side long, green
+//! when the grasp is `graspable`, orange when it is not.
 
 use crate::api::image::{ImageResponse, MarkerResultDto};
+use crate::api::pick::ObjectDto;
 use crate::api::response::{PoseResponse, Vec3Mm};
 use crate::geometry::camera::Camera;
 use crate::geometry::frames::CameraPoint;
@@ -32,6 +38,13 @@ pub const CORNER_MARK: Rgb = Rgb([255, 0, 255]);
 pub const LABEL_TEXT: Rgb = Rgb([255, 255, 255]);
 /// The box behind the payload's text.
 pub const LABEL_BOX: Rgb = Rgb([0, 0, 0]);
+
+/// A product's box.
+pub const BOX: Rgb = Rgb([0, 255, 255]);
+/// The approach axis of a grasp that is `graspable`.
+pub const GRASPABLE: Rgb = Rgb([64, 255, 64]);
+/// The approach axis of a grasp that is not.
+pub const NOT_GRASPABLE: Rgb = Rgb([255, 128, 0]);
 
 /// Text shown for a symbol that was found but not decoded.
 pub const UNDECODED_LABEL: &str = "(not decoded)";
@@ -125,6 +138,74 @@ pub fn pose_axes(camera: &Camera, pose: &PoseResponse) -> Option<ProjectedAxes> 
     )
 }
 
+/// The edges of a box with centre `centre`, axes the columns of `matrix` and extents
+/// `box_mm`, as pairs of corner indices into [`box_corners`]'s order.
+const BOX_EDGES: [(usize, usize); 12] = [
+    (0, 1),
+    (1, 3),
+    (3, 2),
+    (2, 0),
+    (4, 5),
+    (5, 7),
+    (7, 6),
+    (6, 4),
+    (0, 4),
+    (1, 5),
+    (2, 6),
+    (3, 7),
+];
+
+/// The eight corners of a box posed at (`centre_mm`, `matrix`) with extents `box_mm`,
+/// camera frame: corner k has sign (−, +) of x, y, z from bits 0, 1, 2 of k.
+fn box_corners(centre_mm: &Vec3Mm, matrix: &[[f64; 3]; 3], box_mm: [f64; 3]) -> [Point3<f64>; 8] {
+    let r = nalgebra::Matrix3::from_fn(|i, j| matrix[i][j]);
+    std::array::from_fn(|k| {
+        let sign = |bit: usize| if k >> bit & 1 == 1 { 0.5 } else { -0.5 };
+        let local = Vector3::new(
+            sign(0) * box_mm[0],
+            sign(1) * box_mm[1],
+            sign(2) * box_mm[2],
+        );
+        point(centre_mm) + r * local
+    })
+}
+
+/// The strokes of a product (module docs): its box's edges and each grasp's approach axis,
+/// projected through `camera`; a stroke with an end at or behind the camera is left out.
+pub fn object_segments(camera: &Camera, object: &ObjectDto) -> Vec<Segment> {
+    let project = |p: Point3<f64>| camera.project(&CameraPoint(p)).map(|px| [px.u(), px.v()]);
+    let pose = &object.pose;
+    let corners = box_corners(&pose.position_mm, &pose.rotation.matrix, object.box_mm);
+    let mut segments: Vec<Segment> = BOX_EDGES
+        .iter()
+        .filter_map(|&(a, b)| {
+            Some(Segment {
+                from_px: project(corners[a])?,
+                to_px: project(corners[b])?,
+                colour: BOX,
+            })
+        })
+        .collect();
+    let length_mm = 0.5 * object.box_mm.iter().copied().fold(0.0, f64::max);
+    for grasp in &object.grasps {
+        let m = &grasp.pose.rotation.matrix;
+        let approach = Vector3::new(m[0][2], m[1][2], m[2][2]);
+        let at = point(&grasp.pose.position_mm);
+        if let (Some(from_px), Some(to_px)) = (project(at - approach * length_mm), project(at)) {
+            segments.push(Segment {
+                from_px,
+                to_px,
+                colour: if grasp.graspable {
+                    GRASPABLE
+                } else {
+                    NOT_GRASPABLE
+                },
+            });
+        }
+    }
+    segments
+}
+
 /// The payload as shown: the text, `(not decoded)`, shortened to [`MAX_LABEL_CHARS`].
 pub fn label_text(payload: Option<&str>) -> String {
     let text = payload.unwrap_or(UNDECODED_LABEL);
@@ -194,6 +275,9 @@ pub fn overlay_of(response: &ImageResponse, camera: &Camera, label_height_px: f6
                 colour: OUTLINE,
             });
         }
+        if let Some(object) = marker.pose.as_ref().and_then(|p| p.object.as_ref()) {
+            overlay.segments.extend(object_segments(camera, object));
+        }
         if let Some(axes) = marker.pose.as_ref().and_then(|p| pose_axes(camera, p)) {
             // z first, x last: x, the axis most often read, stays on top.
             for (axis, colour) in [(2, Z_AXIS), (1, Y_AXIS), (0, X_AXIS)] {
@@ -240,6 +324,55 @@ mod tests {
         assert_eq!(axes.ends_px[1], [639.5, 459.5], "y: 100 px down");
         // z points away from the camera: its end lies on the centre's ray.
         assert_eq!(axes.ends_px[2], [639.5, 359.5]);
+    }
+
+    #[test]
+    fn a_products_box_and_grasps_are_drawn_coloured_by_graspable() {
+        use crate::api::frames::FramePoseDto;
+        use crate::api::pick::{GraspDto, GraspKindDto};
+        use crate::api::response::RotationDto;
+        let pose = |x: f64, z: f64, r: nalgebra::Rotation3<f64>| FramePoseDto {
+            position_mm: Vec3Mm { x, y: 0.0, z },
+            rotation: RotationDto::from_rotation(&r),
+            covariance: None,
+        };
+        let grasp = |graspable: bool, x: f64| GraspDto {
+            name: "g".to_owned(),
+            kind: GraspKindDto::Suction,
+            // The tool approaches along +z, into the scene.
+            pose: pose(x, 450.0, nalgebra::Rotation3::identity()),
+            pose_in_robot: None,
+            pre_grasp_in_robot: None,
+            width_mm: None,
+            within_tolerance_probability: Some(0.5),
+            graspable,
+            reasons: vec![],
+        };
+        let object = ObjectDto {
+            rule: "prefix:SKU-".to_owned(),
+            box_mm: [200.0, 100.0, 100.0],
+            pose: pose(0.0, 500.0, nalgebra::Rotation3::identity()),
+            pose_in_robot: None,
+            grasps: vec![grasp(true, -50.0), grasp(false, 50.0)],
+        };
+        let segments = object_segments(&camera(), &object);
+        assert_eq!(segments.len(), 14);
+        assert!(segments[..12].iter().all(|s| s.colour == BOX));
+        // Corner 0 is (−100, −50, −50) mm from the centre: the near face's top left.
+        let near = |px: [f64; 2], want: [f64; 2]| (px[0] - want[0]).hypot(px[1] - want[1]) < 1e-9;
+        let top_left = [
+            639.5 - 1000.0 * 100.0 / 450.0,
+            359.5 - 1000.0 * 50.0 / 450.0,
+        ];
+        assert!(near(segments[0].from_px, top_left), "{:?}", segments[0]);
+        let axes: Vec<&Segment> = segments[12..].iter().collect();
+        assert_eq!((axes[0].colour, axes[1].colour), (GRASPABLE, NOT_GRASPABLE));
+        // Each axis ends at its grasp point and starts 100 mm nearer the camera.
+        assert!(near(axes[0].to_px, [639.5 - 1000.0 * 50.0 / 450.0, 359.5]));
+        assert!(near(
+            axes[0].from_px,
+            [639.5 - 1000.0 * 50.0 / 350.0, 359.5]
+        ));
     }
 
     #[test]
