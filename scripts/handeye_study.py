@@ -118,15 +118,23 @@ def project_truth(doc, view, k, d):
 
 
 def anchor_poses(doc, folder):
-    """Per view: the zxing pose and the board pose (or None)."""
-    k, d = camera(doc)
-    out = []
-    for view in doc["views"]:
-        z = zxing_pose(read_gray(folder / view["photo"]), k, d, doc["marker"]["size_mm"])
-        b = board_pose(read_gray(folder / view["board"]), k, d, view["board_inner_corners_mm"],
-                       project_truth(doc, view, k, d))
-        out.append({"zxing": z, "checkerboard": b})
-    return out
+    """Per view: the zxing pose and the board pose (or None). Cached in the session folder
+    (anchors.json): the photos of a session never change."""
+    cache = folder / "anchors.json"
+    if cache.exists():
+        raw = json.loads(cache.read_text())
+    else:
+        k, d = camera(doc)
+        raw = []
+        for view in doc["views"]:
+            z = zxing_pose(read_gray(folder / view["photo"]), k, d, doc["marker"]["size_mm"])
+            b = board_pose(read_gray(folder / view["board"]), k, d, view["board_inner_corners_mm"],
+                           project_truth(doc, view, k, d))
+            raw.append({name: None if p is None else [p[0].ravel().tolist(), p[1].ravel().tolist()]
+                        for name, p in (("zxing", z), ("checkerboard", b))})
+        cache.write_text(json.dumps(raw))
+    return [{name: None if p is None else (np.array(p[0]), np.array(p[1])) for name, p in v.items()}
+            for v in raw]
 
 
 def opencv_mounts(doc, poses, level, anchor):

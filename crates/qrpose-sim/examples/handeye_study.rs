@@ -256,6 +256,7 @@ fn session(out: &Path, setup: Setup, seed: u64) -> Value {
                     "views_used": found.views.iter().filter(|v| v.used).count(),
                     "warnings": found.warnings.iter().map(|w| w.code()).collect::<Vec<_>>(),
                     "solve_ms": solve_ms,
+                    "site_mount": found.site_mount(),
                 })
             }
             Err(e) => json!({"error": e.code(), "detail": e.to_string()}),
