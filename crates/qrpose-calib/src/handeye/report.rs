@@ -194,6 +194,14 @@ pub struct HandEyeViewReport {
     pub translation_residual_mm: Option<f64>,
 }
 
+impl HandEyeViewReport {
+    /// `rotation_residual_rad` in degrees.
+    #[must_use]
+    pub fn rotation_residual_deg(&self) -> Option<f64> {
+        self.rotation_residual_rad.map(f64::to_degrees)
+    }
+}
+
 /// A hand-eye calibration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HandEyeCalibration {
