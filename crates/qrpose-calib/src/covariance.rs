@@ -65,7 +65,7 @@ pub const BLOCKS_PER_SIDE: usize = 4;
 const MAX_LEVERAGE: f64 = 1.0 - 1e-6;
 
 /// φ(s) = ((1 − s)^−½ − 1) / s, continuous at s = 0 (φ → 1/2 + 3s/8).
-pub(crate) fn phi(s: f64) -> f64 {
+fn phi(s: f64) -> f64 {
     if s < 1e-8 {
         0.5 + 0.375 * s
     } else {
@@ -76,7 +76,7 @@ pub(crate) fn phi(s: f64) -> f64 {
 
 /// A point's cluster within its view: the cell of the [`BLOCKS_PER_SIDE`]² grid over the
 /// view's target extent.
-pub(crate) fn cells(view: &ViewData, blocks_per_side: usize) -> Vec<usize> {
+fn cells(view: &ViewData, blocks_per_side: usize) -> Vec<usize> {
     let Some(first) = view.target_mm.first() else {
         return Vec::new();
     };

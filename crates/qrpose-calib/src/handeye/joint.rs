@@ -17,14 +17,12 @@
 //! the identity (exact to the flange correction's angle, ~1e-3 rad, relative).
 //!
 //! The system is dense (12 + 6n unknowns, n ≤ 100 views): one Cholesky per step. At the
-//! minimum, with the last IRLS weights held and the pixel residuals whitened by σ̂, the
-//! Gauss-Newton matrix H = JᵀWJ gives the covariance of every unknown, marginalised over
-//! the rest by taking the mount's 6 × 6 block of its inverse; the pixel part is made
-//! cluster-robust ([`mount_covariance`]).
+//! minimum, with the last IRLS weights held, (JᵀWJ)⁻¹ is the covariance of every unknown
+//! (the pixel residuals are whitened by σ̂, the priors by S); its first 6 × 6 block is the
+//! mount's, marginalised over the target and the flange corrections.
 
 use super::input::HandEyeSetup;
 use super::rigid::{compose, d_inverse, d_left, d_right, difference, inverse};
-use crate::covariance::{BLOCKS_PER_SIDE, cells, phi};
 use crate::error::SolveFailure;
 use crate::lm::ViewData;
 use crate::model::{Intrinsics, Pose, project, project_with_jacobian};
@@ -277,84 +275,12 @@ pub(crate) fn minimise(
     })
 }
 
-/// The mount's covariance, 6 × 6 over its step (ω rad, δt mm; parent axes): the
-/// cluster-robust sandwich of the module doc, `None` when the normal equations are
-/// singular.
-///
-/// Pixel errors of one code are not independent: a corner refinement that is off is off
-/// for a patch of points together, and (JᵀWJ)⁻¹ alone, which takes every point as an
-/// independent measurement, understated the mount's rotation errors by 1.4-1.8× on rendered
-/// photos (docs/measurements/hand-eye.md). As the camera calibration does
-/// ([`crate::covariance`]), the pixel part of the score is summed over clusters — each
-/// view's points in the cells of a [`BLOCKS_PER_SIDE`]² grid over its target — with Bell and
-/// McCaffrey's CR2 leverage adjustment, while the flange priors, whose noise is given,
-/// contribute their model information S⁻²:
-///
-/// ```text
-/// Cov = H⁻¹·(Σ_g c_g·c_gᵀ + P)·H⁻¹,   H = JᵀWJ + P,   P = blockdiag(S⁻², …)
-/// c_g = B_gᵀ·(I − H_gg)^−½·W_g^½·ẽ_g,   B_g = W_g^½·J̃_g,   H_gg = B_g·H⁻¹·B_gᵀ
-/// ```
-///
-/// with J̃ and ẽ whitened by σ̂. H_gg has rank 18 at most (the unknowns X, Y and F_i a
-/// cluster touches): with H⁻¹'s 18 × 18 block L·Lᵀ, Z = B_g·L and Zᵀ·Z = Q·diag(s)·Qᵀ,
-/// c_g = b + G·L·Q·diag(φ(s))·Qᵀ·Lᵀ·b, b = B_gᵀ·W^½·ẽ, G = B_gᵀ·B_g, φ as
-/// [`crate::covariance`]'s.
+/// The mount's covariance (module doc), 6 × 6 over its step (ω rad, δt mm; parent axes);
+/// `None` when the normal equations are singular.
 pub(crate) fn mount_covariance(p: &Problem, state: &State, loss: Huber) -> Option<Matrix6<f64>> {
     let normal = normal_equations(p, state, loss)?;
-    let n = normal.h.nrows();
-    let h_inv = normal.h.clone().cholesky()?.inverse();
-    let mut meat = DMatrix::<f64>::zeros(n, n);
-    let s_inv = p.prior_std.map(|s| 1.0 / s);
-    let prior = Matrix6::from_diagonal(&s_inv.component_mul(&s_inv));
-    let sigma = loss.sigma_px;
-    let cells_per_view = BLOCKS_PER_SIDE * BLOCKS_PER_SIDE;
-    for (i, (view, f)) in p.views.iter().zip(&state.flanges).enumerate() {
-        add_block(&mut meat, 2 + i, 2 + i, &prior);
-        let ch = chained(p.setup, &state.x, &state.y, f);
-        // The 18 unknowns this view touches: X, Y, F_i.
-        let index = |k: usize| match k / 6 {
-            0 => k,
-            1 => k,
-            _ => 6 * (2 + i) + k % 6,
-        };
-        let h_inv_18 = DMatrix::from_fn(18, 18, |r, c| h_inv[(index(r), index(c))]);
-        let l = h_inv_18.cholesky()?.l();
-        let mut g = vec![DMatrix::<f64>::zeros(18, 18); cells_per_view];
-        let mut b = vec![DVector::<f64>::zeros(18); cells_per_view];
-        for ((m, uv), cell) in view
-            .target_mm
-            .iter()
-            .zip(&view.pixel_px)
-            .zip(cells(view, BLOCKS_PER_SIDE))
-        {
-            let q = project_with_jacobian(p.k, p.lens, &ch.c, m)?;
-            let e = q.uv - uv;
-            let root_w = loss.weight(e.norm()).sqrt() / sigma;
-            let mut j = SMatrix::<f64, 2, 18>::zeros();
-            j.fixed_columns_mut::<6>(0).copy_from(&(q.d_pose * ch.d_x));
-            j.fixed_columns_mut::<6>(6).copy_from(&(q.d_pose * ch.d_y));
-            j.fixed_columns_mut::<6>(12).copy_from(&(q.d_pose * ch.d_f));
-            let bp = j * root_w;
-            let ew = e * root_w;
-            let bp_d = DMatrix::from_fn(2, 18, |r, c| bp[(r, c)]);
-            g[cell] += bp_d.transpose() * &bp_d;
-            b[cell] += bp_d.transpose() * DVector::from_fn(2, |r, _| ew[r]);
-        }
-        for (g_c, b_c) in g.iter().zip(&b) {
-            let eigen = (l.transpose() * g_c * &l).symmetric_eigen();
-            let phis = eigen.eigenvalues.map(|s| phi(s.max(0.0)));
-            let q = &eigen.eigenvectors;
-            let inner = q * DMatrix::from_diagonal(&phis) * q.transpose();
-            let score18 = b_c + g_c * &l * inner * l.transpose() * b_c;
-            let mut score = DVector::<f64>::zeros(n);
-            for k in 0..18 {
-                score[index(k)] += score18[k];
-            }
-            meat += &score * score.transpose();
-        }
-    }
-    let cov_full = &h_inv * meat * &h_inv;
-    let c = Matrix6::from_fn(|r, col| cov_full[(r, col)]);
+    let inv = normal.h.cholesky()?.inverse();
+    let c = Matrix6::from_fn(|r, col| inv[(r, col)]);
     let c = (c + c.transpose()) * 0.5;
     c.iter().all(|x| x.is_finite()).then_some(c)
 }
