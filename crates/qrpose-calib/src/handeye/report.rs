@@ -194,6 +194,14 @@ pub struct HandEyeViewReport {
     pub translation_residual_mm: Option<f64>,
 }
 
+impl HandEyeViewReport {
+    /// `rotation_residual_rad` in degrees.
+    #[must_use]
+    pub fn rotation_residual_deg(&self) -> Option<f64> {
+        self.rotation_residual_rad.map(f64::to_degrees)
+    }
+}
+
 /// A hand-eye calibration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HandEyeCalibration {
@@ -206,13 +214,13 @@ pub struct HandEyeCalibration {
     /// of `docs/conventions.md` with its origin at the symbol's centre (as the site map's).
     pub target_pose: Isometry3<f64>,
     /// Covariance of `camera_pose`, 6 × 6 over (δθx, δθy, δθz, δtx, δty, δtz), rad², rad·mm,
-    /// mm², for the perturbation R → exp([δθ]×)·R, t → t + δt with δθ and δt along the
+    /// mm², for the perturbation R → exp(\[δθ\]×)·R, t → t + δt with δθ and δt along the
     /// *parent* frame's axes (flange or robot): qrpose-site's `transform` convention, so it
     /// propagates with its functions as it is. Marginal over the target and the flange
     /// corrections, scaled by the estimated pixel noise.
     pub covariance: Matrix6<f64>,
     /// One standard deviation of the camera's rotation about its *own* axes (camera x, y,
-    /// z: the covariance turned into the camera frame, R → R·exp([δθ_c]×)), rad.
+    /// z: the covariance turned into the camera frame, R → R·exp(\[δθ_c\]×)), rad.
     pub std_rotation_rad: [f64; 3],
     /// One standard deviation of the camera's position along its own axes, mm.
     pub std_translation_mm: [f64; 3],
@@ -230,7 +238,7 @@ pub struct HandEyeCalibration {
 
 impl HandEyeCalibration {
     /// The covariance of `camera_pose` about the camera's own axes: diag(Rᵀ, Rᵀ)·Σ·diag(R, R),
-    /// for R → R·exp([δθ_c]×), t → t + R·δt_c.
+    /// for R → R·exp(\[δθ_c\]×), t → t + R·δt_c.
     #[must_use]
     pub fn covariance_camera_axes(&self) -> Matrix6<f64> {
         covariance_in_own_axes(&self.covariance, &self.camera_pose.rotation)

@@ -7,6 +7,7 @@
 //! module `pick`).
 
 mod camera;
+mod hand_eye;
 mod pick;
 mod sequence;
 
@@ -68,6 +69,18 @@ pub struct RenderArgs {
     /// lists every code under "codes".
     #[arg(long, value_name = "FILE.json", conflicts_with_all = SINGLE_CODE_FLAGS)]
     pub scene: Option<PathBuf>,
+    /// Render the photos of a hand-eye session (docs/hand-eye.md): a camera on a robot
+    /// arm, its mount, the code's pose, the flange poses (given, or drawn by a generator)
+    /// and their reported noisy values. --out is the directory (created if missing); writes
+    /// photo-000.jpg, … (board-000.jpg, … with "checkerboard") and truth.json, and prints
+    /// the same JSON. The effect flags apply.
+    #[arg(
+        long,
+        value_name = "SESSION.json",
+        conflicts_with_all = ["scene", "random_scene", "sequence"],
+        conflicts_with_all = SINGLE_CODE_FLAGS
+    )]
+    pub hand_eye: Option<PathBuf>,
     /// Render a random scene drawn from this seed: 2-6 codes of 30-120 mm, 0.3-2 m away,
     /// tilted up to 35° from the line of sight, never overlapping (quiet zones included),
     /// seen by a camera with fx = fy in 950-1050 px and the principal point at the centre,
@@ -420,6 +433,9 @@ pub(super) fn run(args: &RenderArgs) -> Result<Value, Failure> {
     };
     if args.pick.requested() {
         return pick::run(args, &effects);
+    }
+    if let Some(session) = &args.hand_eye {
+        return hand_eye::run(session, &args.out, &effects);
     }
     if args.scene.is_some() || args.random_scene.is_some() {
         return run_multi(args, &effects);

@@ -34,6 +34,8 @@
 //! the file encoding in module `encoding`. Every public item is re-exported here, but for
 //! rendered video: a camera moving past codes placed in a world frame, frame by frame, with
 //! the truth of every code in view, in the public module [`sequence`] (docs/rendering.md).
+//! Hand-eye sessions (a camera on a robot arm, true and reported flange poses, the code's
+//! pose in each photo) are in the public module [`hand_eye`] (docs/hand-eye.md).
 //! Module `checkerboard` draws printed checkerboards with the same rasteriser and effects
 //! ([`render_checkerboard`]), the reference target of the calibration comparison.
 
@@ -43,6 +45,7 @@
 
 mod checkerboard;
 mod encoding;
+pub mod hand_eye;
 mod random;
 mod raster;
 mod scene;
