@@ -167,11 +167,11 @@ pub struct CameraDto {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub id: Option<String>,
     /// Horizontal focal length, px.
-    #[schema(example = 1000.0, exclusive_minimum = 0)]
+    #[schema(example = 1000.0, minimum = 1e-3, maximum = 1e9)]
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fx_px: Option<f64>,
     /// Vertical focal length, px.
-    #[schema(example = 1000.0, exclusive_minimum = 0)]
+    #[schema(example = 1000.0, minimum = 1e-3, maximum = 1e9)]
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fy_px: Option<f64>,
     /// Principal point, horizontal, px (pixel centres are integers: the image centre of a
@@ -184,11 +184,11 @@ pub struct CameraDto {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cy_px: Option<f64>,
     /// Lens focal length, mm (sensor or paper form).
-    #[schema(exclusive_minimum = 0)]
+    #[schema(minimum = 1e-3, maximum = 1e5)]
     #[serde(skip_serializing_if = "Option::is_none")]
     pub focal_length_mm: Option<f64>,
     /// Pixel pitch, µm (sensor form).
-    #[schema(exclusive_minimum = 0)]
+    #[schema(minimum = 1e-3, maximum = 1e5)]
     #[serde(skip_serializing_if = "Option::is_none")]
     pub pixel_size_um: Option<f64>,
     /// Lens distortion of the corner pixels; none when omitted.
@@ -235,6 +235,48 @@ impl From<&Camera> for CameraDto {
     }
 }
 
+/// The focal lengths a pixel camera may have, px: what the schema states and the server
+/// checks first. Far wider than any lens, and narrow enough that no ray coordinate of a
+/// corner within the image limits leaves the solvers' double-precision range.
+pub const FOCAL_RANGE_PX: (f64, f64) = (1e-3, 1e9);
+/// The lens focal lengths and pixel pitches the sensor form may have, mm and µm.
+pub const SENSOR_RANGE: (f64, f64) = (1e-3, 1e5);
+
+/// The camera's numbers outside their stated ranges, as problems at `camera_pointer/NAME`
+/// (`invalid_camera_parameter`; `non_finite_number` for NaN or infinity).
+///
+/// # Errors
+/// The first value out of range.
+pub fn check_ranges(camera: &CameraDto, camera_pointer: &str) -> Result<(), Problem> {
+    let checked = [
+        (camera.fx_px, CameraParam::FxPx, FOCAL_RANGE_PX),
+        (camera.fy_px, CameraParam::FyPx, FOCAL_RANGE_PX),
+        (
+            camera.focal_length_mm,
+            CameraParam::FocalLengthMm,
+            SENSOR_RANGE,
+        ),
+        (camera.pixel_size_um, CameraParam::PixelSizeUm, SENSOR_RANGE),
+    ];
+    for (value, param, (low, high)) in checked {
+        let Some(v) = value else { continue };
+        if !v.is_finite() {
+            return Err(problem_from_camera_error(
+                CameraError::NonFinite { param },
+                camera_pointer,
+            ));
+        }
+        if !(low..=high).contains(&v) {
+            return Err(Problem::new(
+                ErrorCode::InvalidCameraParameter,
+                format!("{param} = {v:e} is outside [{low:e}, {high:e}]"),
+            )
+            .with_field(format!("{camera_pointer}/{param}")));
+        }
+    }
+    Ok(())
+}
+
 fn incomplete(detail: impl Into<String>, field: impl Into<String>) -> Problem {
     Problem::new(ErrorCode::IncompleteCamera, detail).with_field(field)
 }
@@ -256,6 +298,7 @@ impl CameraDto {
     /// `incomplete_camera` for a missing or conflicting form, `invalid_camera_parameter` or
     /// `non_finite_number` for a bad value.
     pub fn to_camera(&self, unit: CornersUnit) -> Result<(Camera, Option<f64>), Problem> {
+        check_ranges(self, "/camera")?;
         let has_px = self.fx_px.is_some() || self.fy_px.is_some();
         let has_sensor = self.focal_length_mm.is_some() || self.pixel_size_um.is_some();
         let err = |e| problem_from_camera_error(e, "/camera");
@@ -425,6 +468,36 @@ mod tests {
                 "{wire}"
             );
         }
+    }
+
+    #[test]
+    fn focal_lengths_and_pitches_outside_the_stated_ranges_are_refused_naming_them() {
+        let pixel = |fx: f64| CameraDto {
+            fx_px: Some(fx),
+            fy_px: Some(1000.0),
+            cx_px: Some(640.0),
+            cy_px: Some(360.0),
+            ..CameraDto::default()
+        };
+        for fx in [5e-324, 1e-4, 2e9] {
+            let problem = pixel(fx)
+                .to_camera(CornersUnit::Px)
+                .expect_err("out of range");
+            assert_eq!(problem.code, ErrorCode::InvalidCameraParameter, "{fx}");
+            assert_eq!(problem.field.as_deref(), Some("/camera/fx_px"));
+        }
+        for fx in [FOCAL_RANGE_PX.0, 1000.0, FOCAL_RANGE_PX.1] {
+            assert!(pixel(fx).to_camera(CornersUnit::Px).is_ok(), "{fx}");
+        }
+        let sensor = CameraDto {
+            focal_length_mm: Some(8.0),
+            pixel_size_um: Some(1e6),
+            cx_px: Some(640.0),
+            cy_px: Some(360.0),
+            ..CameraDto::default()
+        };
+        let problem = sensor.to_camera(CornersUnit::Px).expect_err("out of range");
+        assert_eq!(problem.field.as_deref(), Some("/camera/pixel_size_um"));
     }
 
     #[test]

@@ -463,14 +463,20 @@ async fn magnitudes_beyond_double_precision_get_422_numerically_degenerate() {
         let problem = assert_problem(response, 422, NumericallyDegenerate).await;
         assert_eq!(problem.field.as_deref(), Some("/corners_px"), "{corners}");
     }
-    // Finite millimetres that overflow only once divided by a tiny pixel pitch were
-    // `non_finite_number` ("corner 2 has a coordinate that is not a finite number").
-    let body = json!({
+    // Finite millimetres that overflow only once divided by the smallest pixel pitch the
+    // schema allows (1e-3 µm) were `non_finite_number` ("corner 2 has a coordinate that is
+    // not a finite number").
+    let mut body = json!({
         "corners_mm": [[0.0, 0.0], [1e306, 0.0], [1e306, 1e306], [0.0, 1e306]],
-        "camera": {"focal_length_mm": 4.0, "pixel_size_um": 1e-300},
+        "camera": {"focal_length_mm": 4.0, "pixel_size_um": 1e-3},
         "marker": {"size_mm": 50.0}
     });
     let problem = assert_problem(app.post_corners(&body).await, 422, NumericallyDegenerate).await;
     assert_eq!(problem.field.as_deref(), Some("/corners_mm"));
+    // A pitch below the stated range is the camera's fault, named.
+    body["camera"]["pixel_size_um"] = json!(1e-300);
+    let problem =
+        assert_problem(app.post_corners(&body).await, 422, InvalidCameraParameter).await;
+    assert_eq!(problem.field.as_deref(), Some("/camera/pixel_size_um"));
     app.assert_up("extreme magnitudes").await;
 }

@@ -1,5 +1,6 @@
 //! `spawn_app()`: the service on `127.0.0.1:0` in this test's runtime, and a client for it.
 
+use qrpose::api::problem::operations::Operation;
 use qrpose::api::problem::{ErrorCode, Problem};
 use qrpose::config::{LogFormat, Settings};
 use qrpose::geometry::{camera::Camera, euler::EulerXyz, marker::Marker};
@@ -209,6 +210,15 @@ where
 /// Asserts a problem+json answer with this status and code, and returns the document.
 pub async fn assert_problem(response: Response, status: u16, code: ErrorCode) -> Problem {
     let context = format!("{} {}", response.url().path(), response.status());
+    // Every refusal the tests see is one the document lists for its operation.
+    if status == 422
+        && let Some(operation) = Operation::of_path(response.url().path())
+    {
+        assert!(
+            operation.unprocessable().contains(&code),
+            "{context}: {code:?} is not in the document's list for {operation:?}"
+        );
+    }
     assert_eq!(response.status().as_u16(), status, "{context}");
     assert_eq!(
         response.headers()[header::CONTENT_TYPE],

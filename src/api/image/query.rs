@@ -9,11 +9,10 @@
 
 use super::{DetectorDto, EffortDto, ImageRequest, PointsDto};
 use crate::api::camera::DistortionModelDto;
+use crate::api::camera::check_ranges;
 use crate::api::problem::{ErrorCode, Problem};
-use crate::api::refusal::problem_from_camera_error;
 use crate::api::request::{CameraDto, DistortionDto, MarkerDto, MethodDto, SolverDto};
 use crate::app::{ImageLimits, ImageSetup};
-use crate::geometry::camera::{CameraError, CameraParam};
 use qrpose_site::Site;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -33,11 +32,11 @@ pub struct ImageQuery {
     #[arg(long)]
     pub camera_id: Option<String>,
     /// Horizontal focal length, px.
-    #[param(exclusive_minimum = 0)]
+    #[param(minimum = 1e-3, maximum = 1e9)]
     #[arg(long, allow_negative_numbers = true)]
     pub fx_px: Option<f64>,
     /// Vertical focal length, px.
-    #[param(exclusive_minimum = 0)]
+    #[param(minimum = 1e-3, maximum = 1e9)]
     #[arg(long, allow_negative_numbers = true)]
     pub fy_px: Option<f64>,
     /// Principal point, horizontal, px (integer = pixel centre).
@@ -47,11 +46,11 @@ pub struct ImageQuery {
     #[arg(long, allow_negative_numbers = true)]
     pub cy_px: Option<f64>,
     /// Lens focal length, mm (sensor form, with `pixel_size_um`).
-    #[param(exclusive_minimum = 0)]
+    #[param(minimum = 1e-3, maximum = 1e5)]
     #[arg(long, allow_negative_numbers = true)]
     pub focal_length_mm: Option<f64>,
     /// Pixel pitch, µm (sensor form).
-    #[param(exclusive_minimum = 0)]
+    #[param(minimum = 1e-3, maximum = 1e5)]
     #[arg(long, allow_negative_numbers = true)]
     pub pixel_size_um: Option<f64>,
     /// Radial distortion r² coefficient (OpenCV's k1).
@@ -216,20 +215,7 @@ impl ImageQuery {
         self.clone()
             .into_request()
             .and_then(|request| {
-                let positive = [
-                    (request.camera.fx_px, CameraParam::FxPx),
-                    (request.camera.fy_px, CameraParam::FyPx),
-                    (request.camera.focal_length_mm, CameraParam::FocalLengthMm),
-                    (request.camera.pixel_size_um, CameraParam::PixelSizeUm),
-                ];
-                for (value, param) in positive {
-                    match value {
-                        Some(v) if !v.is_finite() => Err(CameraError::NonFinite { param }),
-                        Some(v) if v <= 0.0 => Err(CameraError::NonPositive { param, value: v }),
-                        _ => Ok(()),
-                    }
-                    .map_err(|e| problem_from_camera_error(e, "/camera"))?;
-                }
+                check_ranges(&request.camera, "/camera")?;
                 if request.camera.id.as_deref() == Some("") {
                     return Err(Problem::new(ErrorCode::UnknownCamera, "camera_id is empty")
                         .with_field(CAMERA_ID_POINTER));

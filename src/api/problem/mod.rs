@@ -9,6 +9,7 @@
 //! strings of `crate::http::extract`): the detail is serde's message, the code of a shape
 //! error its kind ([`ShapeKind`], the one place that reads serde's wording).
 
+pub mod operations;
 mod shape;
 #[cfg(test)]
 mod tests;

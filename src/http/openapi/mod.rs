@@ -17,6 +17,7 @@
 
 pub mod asyncapi;
 mod forms;
+mod problems;
 mod query;
 mod requests;
 mod security;
@@ -130,6 +131,7 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
 pub fn openapi_json(served: Served) -> Result<String, serde_json::Error> {
     let mut doc = serde_json::to_value(openapi())?;
     forms::document_forms(&mut doc);
+    problems::write_problem_codes(&mut doc);
     requests::write_alternatives(&mut doc, served);
     query::parameters_as_served(&mut doc, served);
     if served.auth {

@@ -14,10 +14,9 @@
 //! - corners no pose fits: the paper's iteration settles only on axis and square on, and
 //!   elsewhere can drift until its corners are collinear (`no_solution`); a corner that
 //!   cannot be undistorted with the given coefficients (`undistortion_failed`);
-//! - magnitudes beyond double precision: a focal length that overflows once divided by the
-//!   pixel size, a subnormal that parses as 0, a quaternion too small to normalise
-//!   (`non_finite_number`, `numerically_degenerate`, `invalid_camera_parameter`,
-//!   `invalid_prior`);
+//! - magnitudes beyond double precision: corners that overflow once divided by the pixel
+//!   size, a quaternion too small to normalise (`numerically_degenerate`, `invalid_prior`;
+//!   focal lengths and pixel pitches have stated ranges, `camera::FOCAL_RANGE_PX`);
 //! - bytes that are not a JPEG or PNG (`undecodable_image`); photos for `POST /v1/calibrate`
 //!   that do not show one code, decoded in at least three of them, at one size
 //!   (`no_code_found`, `too_few_views`, `mixed_image_sizes`);

@@ -145,8 +145,7 @@ fn annotate_job(
         (status = 415, description = "`unsupported_media_type`: the Content-Type is missing or \
             not `image/jpeg`, `image/png` or `multipart/form-data`.",
             body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "As `POST /v1/pose/image`; e.g. `undecodable_image`, \
-            `missing_field`, `incomplete_camera`.",
+        (status = 422, description = "As `POST /v1/pose/image`.",
             body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:qrpose:problem:undecodable_image",
                 "title": "Undecodable image", "status": 422,

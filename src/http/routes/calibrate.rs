@@ -101,15 +101,12 @@ pub(super) fn photos_array(
         (status = 415, description = "`unsupported_media_type`: the Content-Type is not \
             `multipart/form-data`.",
             body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "A well-formed request that gives no calibration. \
-            `too_few_views`: fewer than 3 photos, fewer than 3 with a code giving enough \
+        (status = 422, description = "A well-formed request that gives no calibration \
+            (`too_few_views`: fewer than 3 photos, fewer than 3 with a code giving enough \
             points, or fewer left once the views that do not fit are dropped; \
-            `too_many_images`: more than 100 photos; `mixed_image_sizes`: a photo of another \
-            size than the first (`field` `image/K`); `no_code_found`: no QR code decoded in \
-            any photo; `undecodable_image` (`field` `image/K`); `calibration_failed`: the \
-            solve failed (every photo facing the code squarely); `missing_field` (the part \
-            `image` or `request`, or `marker.size_mm`), `unknown_field`, `invalid_type`, \
-            `unknown_variant` (`model`), `invalid_marker_size`.",
+            `mixed_image_sizes` and `undecodable_image` name the photo, `image/K`; \
+            `calibration_failed`: the solve failed, e.g. every photo facing the code \
+            squarely).",
             body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:qrpose:problem:too_few_views",
                 "title": "Too few usable views", "status": 422,

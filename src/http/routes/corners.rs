@@ -49,17 +49,10 @@ use std::sync::Arc;
             not `application/json`.",
             body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "Well-formed JSON that cannot be used; `field` points at \
-            the culprit. Codes: `missing_field`, `unknown_field`, `invalid_type`, \
-            `unknown_variant`, `non_finite_number`, `corners_missing_or_conflicting`, \
-            `corner_count`, `duplicate_corners`, `collinear_corners`, \
-            `self_intersecting_corners`, `non_convex_corners`, `mirrored_corners`, \
-            `incomplete_camera`, `invalid_camera_parameter`, `undistortion_failed`, \
-            `invalid_marker_size`, `solver_parameter_out_of_range`, `no_solution`, \
-            `unknown_camera` (`camera.id` not in the loaded site, or no site), \
-            `unknown_marker_size` (no `marker` and no site size for `payload`), \
-            `invalid_prior`, \
-            `numerically_degenerate` (magnitudes such as corners at 1e150 px, beyond double \
-            precision: no number of a 200 is ever NaN, infinite or a null in its place).",
+            the culprit (`unknown_camera`: `camera.id` not in the loaded site, or no site; \
+            `unknown_marker_size`: no `marker` and no site size for `payload`; \
+            `numerically_degenerate`: magnitudes such as corners at 1e150 px, beyond double \
+            precision, so that no number of a 200 is ever NaN, infinite or null).",
             body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:qrpose:problem:duplicate_corners",
                 "title": "Duplicate corners", "status": 422,

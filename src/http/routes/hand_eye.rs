@@ -71,15 +71,12 @@ fn photos_schema() -> utoipa::openapi::schema::Array {
         (status = 415, description = "`unsupported_media_type`: the Content-Type is not \
             `multipart/form-data`.",
             body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "A well-formed request that gives no calibration. \
-            `flange_poses_mismatch`: not one flange pose per photo; `degenerate_motion`: the \
+        (status = 422, description = "A well-formed request that gives no calibration \
+            (`flange_poses_mismatch`: not one flange pose per photo; `degenerate_motion`: the \
             motions between the views turn about fewer than two distinct axes; \
-            `too_few_views`: fewer than 4 photos with the code read; `too_many_images`; \
-            `no_code_found`; `mixed_image_sizes`, `undecodable_image` (`field` `image/K`); \
-            `invalid_robot_pose` (no rotation or two, or a quaternion whose norm is off 1 by \
-            more than 1e-3; `field` `/flange_poses/K`); `calibration_failed`; the camera's \
-            and the marker's codes as in pose requests; `missing_field`, `unknown_field`, \
-            `invalid_type`, `unknown_variant`.",
+            `too_few_views`: fewer than 4 photos with the code read; `invalid_robot_pose`: no \
+            rotation or two, or a quaternion whose norm is off 1 by more than 1e-3, `field` \
+            `/flange_poses/K`).",
             body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:qrpose:problem:degenerate_motion",
                 "title": "Degenerate motion", "status": 422,

@@ -89,16 +89,12 @@ pub struct ImageForm {
             body = Problem, content_type = "application/problem+json"),
         (status = 422, description = "A well-formed request that cannot be used; `field` names \
             the query parameter, the multipart part or (a JSON pointer) the field of the \
-            `request` part. Codes: `undecodable_image` (not a JPEG or PNG, corrupt, \
-            truncated, empty), `detector_unavailable` (`zxing-cpp` in a build without it), \
-            `points_need_reprojection` (`points = finders` with another method), \
-            `invalid_detection_budget` (a `max_detect_ms` that is not positive), \
-            `missing_field` (`marker_size_mm`, or the part `image` or `request`), \
-            `unknown_field`, `invalid_type`, `unknown_variant`, `non_finite_number`, \
-            `incomplete_camera`, `invalid_camera_parameter`, `invalid_marker_size`, \
-            `solver_parameter_out_of_range`, `unknown_camera` (`camera_id` / `camera.id` not \
-            in the loaded site, or no site), `invalid_prior`. A code the site cannot size is \
-            not a refusal: its `pose` is null and its `problem` is `unknown_marker_size`.",
+            `request` part (`undecodable_image`: not a JPEG or PNG, corrupt, truncated, empty; \
+            `detector_unavailable`: `zxing-cpp` in a build without it; \
+            `points_need_reprojection`: `points = finders` with another method; \
+            `missing_field`: `marker_size_mm`, or the part `image` or `request`). A code the \
+            site cannot size is not a refusal: its `pose` is null and its `problem` is \
+            `unknown_marker_size`.",
             body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:qrpose:problem:undecodable_image",
                 "title": "Undecodable image", "status": 422,

@@ -55,8 +55,8 @@ pub async fn site(State(state): State<AppState>) -> Result<Json<SiteDto>, ApiErr
         (status = 200, description = "The site now loaded.", body = SiteDto),
         (status = 404, description = "`no_site`: the service runs without `--site`.",
             body = Problem, content_type = "application/problem+json"),
-        (status = 422, description = "`invalid_site`: the file on disk was refused; the \
-            previous site stays loaded. `detail` is `FILE:LINE: reason`.",
+        (status = 422, description = "The file on disk was refused; the previous site stays \
+            loaded. `detail` is `FILE:LINE: reason`.",
             body = Problem, content_type = "application/problem+json",
             example = json!({"type": "urn:qrpose:problem:invalid_site",
                 "title": "Invalid site file", "status": 422,

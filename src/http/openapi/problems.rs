@@ -1,0 +1,74 @@
+//! Each operation's 422 answer, written from the one list of its codes
+//! ([`Operation::unprocessable`]): the description ends with the codes, and
+//! `x-problem-codes` lists them for generators and tests.
+
+use crate::api::problem::operations::{OPERATIONS, Operation};
+use serde_json::{Value, json};
+
+/// The 422 response of `operation`'s `POST`.
+fn unprocessable(doc: &mut Value, operation: Operation) -> Option<&mut Value> {
+    let path = operation.path().replace('~', "~0").replace('/', "~1");
+    doc.pointer_mut(&format!("/paths/{path}/post/responses/422"))
+}
+
+/// Writes every operation's codes into its 422 response.
+pub fn write_problem_codes(doc: &mut Value) {
+    for operation in OPERATIONS {
+        let codes: Vec<Value> = operation
+            .unprocessable()
+            .into_iter()
+            .map(|code| json!(code))
+            .collect();
+        let Some(response) = unprocessable(doc, operation) else {
+            continue;
+        };
+        let names: Vec<String> = codes
+            .iter()
+            .filter_map(Value::as_str)
+            .map(|c| format!("`{c}`"))
+            .collect();
+        let description = response["description"].as_str().unwrap_or_default();
+        response["description"] = json!(format!("{description} Codes: {}.", names.join(", ")));
+        response["x-problem-codes"] = Value::Array(codes);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::http::openapi::{Served, openapi_json};
+
+    #[test]
+    fn every_operation_of_the_list_has_its_422_codes_in_the_document() {
+        let doc: Value =
+            serde_json::from_str(&openapi_json(Served::default()).expect("a document"))
+                .expect("JSON");
+        let mut doc = doc;
+        for operation in OPERATIONS {
+            let response = unprocessable(&mut doc, operation).expect("a 422 response");
+            let listed: Vec<String> = response["x-problem-codes"]
+                .as_array()
+                .expect("codes")
+                .iter()
+                .filter_map(|c| c.as_str().map(str::to_owned))
+                .collect();
+            let want: Vec<String> = operation
+                .unprocessable()
+                .iter()
+                .map(|c| {
+                    serde_json::to_value(c)
+                        .expect("a code")
+                        .as_str()
+                        .unwrap_or_default()
+                        .to_owned()
+                })
+                .collect();
+            assert_eq!(listed, want, "{operation:?}");
+            let description = response["description"].as_str().expect("a description");
+            assert!(
+                description.contains(&format!("`{}`", want[0])),
+                "{description}"
+            );
+        }
+    }
+}
