@@ -16,6 +16,7 @@
 //!   cannot be undistorted with the given coefficients (`undistortion_failed`);
 //! - magnitudes beyond double precision: corners that overflow once divided by the pixel
 //!   size, a quaternion too small to normalise (`numerically_degenerate`, `invalid_prior`;
+//!   a robot pose's quaternion whose norm is off 1 by more than 1e-3, `invalid_robot_pose`;
 //!   focal lengths and pixel pitches have stated ranges, `camera::FOCAL_RANGE_PX`);
 //! - bytes that are not a JPEG or PNG (`undecodable_image`); photos for `POST /v1/calibrate`
 //!   that do not show one code, decoded in at least three of them, at one size
@@ -78,6 +79,7 @@ pub fn write_alternatives(doc: &mut Value, served: Served) {
     camera(doc, served);
     corners(doc, served);
     prior(doc);
+    robot_pose(doc);
     distortion(doc);
     finders_need_reprojection(doc);
     if !served.site {
@@ -212,6 +214,37 @@ fn prior(doc: &mut Value) {
                 fields: &["robot_quaternion_wxyz", "sigma_deg"],
                 required: &["robot_quaternion_wxyz", "sigma_deg"],
                 overrides: vec![("robot_quaternion_wxyz", robot)],
+            },
+        ],
+    );
+}
+
+/// A robot pose: the translation and exactly one rotation form.
+fn robot_pose(doc: &mut Value) {
+    split(
+        doc,
+        "RobotPoseDto",
+        &[
+            Variant {
+                name: "RobotPoseQuaternion",
+                summary: "quaternion (ABB)",
+                fields: &["translation_mm", "quaternion_wxyz"],
+                required: &["translation_mm", "quaternion_wxyz"],
+                overrides: vec![],
+            },
+            Variant {
+                name: "RobotPoseRotationVector",
+                summary: "rotation vector (Universal Robots)",
+                fields: &["translation_mm", "rotation_vector_rad"],
+                required: &["translation_mm", "rotation_vector_rad"],
+                overrides: vec![],
+            },
+            Variant {
+                name: "RobotPoseEulerZyx",
+                summary: "Z-Y-X Euler angles (KUKA; Fanuc, Yaskawa)",
+                fields: &["translation_mm", "euler_zyx_deg"],
+                required: &["translation_mm", "euler_zyx_deg"],
+                overrides: vec![],
             },
         ],
     );
