@@ -34,6 +34,10 @@ pub enum PickReasonDto {
     BelowProbability,
     /// The code's pose estimate did not converge.
     NotConverged,
+    /// The code's pose fits its corners worse than their stated noise allows (a corner
+    /// measured wrong, or `corner_sigma_px` too small): its covariance, and so the
+    /// probability, cannot be trusted.
+    HighReprojectionError,
 }
 
 impl From<PickReason> for PickReasonDto {
@@ -43,6 +47,7 @@ impl From<PickReason> for PickReasonDto {
             PickReason::PoseAmbiguous => Self::PoseAmbiguous,
             PickReason::BelowProbability => Self::BelowProbability,
             PickReason::NotConverged => Self::NotConverged,
+            PickReason::HighReprojectionError => Self::HighReprojectionError,
         }
     }
 }

@@ -5,7 +5,7 @@
 //! site crate's.
 
 use super::setup::Pick;
-use qrpose_core::estimate::PoseEstimate;
+use qrpose_core::estimate::{PoseEstimate, Warning};
 use qrpose_site::localize::{Fusion, fuse};
 use qrpose_site::pick::{ObjectPlan, PickOptions, camera_in_robot, plan_pick};
 use qrpose_site::transform::{PoseWithCovariance, compose, marker_in_camera, robot_pose_in_world};
@@ -75,6 +75,10 @@ impl SiteFrames<'_> {
             min_grasp_probability: self.pick.min_grasp_probability,
             pose_ambiguous: ambiguity.is_some_and(|a| a.ambiguous),
             not_converged: !estimate.diagnostics.converged,
+            high_reprojection_error: estimate
+                .diagnostics
+                .warnings
+                .contains(&Warning::HighReprojectionError),
             alternative_probability: ambiguity
                 .and_then(|a| a.alternative_probability)
                 .filter(|p| (0.0..=1.0).contains(p))

@@ -300,6 +300,7 @@ impl TrackSession {
                         min_grasp_probability: setup.pose.pick.min_grasp_probability,
                         pose_ambiguous: mirror >= AMBIGUITY_PROBABILITY_THRESHOLD,
                         not_converged: false,
+                        high_reprojection_error: false,
                         alternative_probability: mirror,
                     };
                     plan_pick(&in_camera, rule, Some(&exact), &options).ok()

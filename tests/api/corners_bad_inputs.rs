@@ -475,8 +475,7 @@ async fn magnitudes_beyond_double_precision_get_422_numerically_degenerate() {
     assert_eq!(problem.field.as_deref(), Some("/corners_mm"));
     // A pitch below the stated range is the camera's fault, named.
     body["camera"]["pixel_size_um"] = json!(1e-300);
-    let problem =
-        assert_problem(app.post_corners(&body).await, 422, InvalidCameraParameter).await;
+    let problem = assert_problem(app.post_corners(&body).await, 422, InvalidCameraParameter).await;
     assert_eq!(problem.field.as_deref(), Some("/camera/pixel_size_um"));
     app.assert_up("extreme magnitudes").await;
 }

@@ -182,6 +182,21 @@ async fn each_reason_that_forbids_a_grasp_is_named() {
             .contains(&json!("pose_ambiguous")),
         "{top}"
     );
+    // One corner measured 2 px off: the fit is worse than 0.1 px corners allow, and the
+    // covariance (small as it is) cannot be trusted.
+    let mut bent = request(Some(&flange_pose()));
+    let u = bent["corners_px"][2][0].as_f64().expect("u");
+    bent["corners_px"][2][0] = json!(u + 2.0);
+    let body = answer(&app, &bent).await;
+    let top = &body["object"]["grasps"][0];
+    assert_eq!(top["graspable"], false, "{body}");
+    assert!(
+        top["reasons"]
+            .as_array()
+            .expect("reasons")
+            .contains(&json!("high_reprojection_error")),
+        "{top}"
+    );
     // A payload no rule matches has no object.
     let mut other = request(Some(&flange_pose()));
     other["payload"] = json!("LOC-7");

@@ -418,6 +418,16 @@ fn every_reason_is_given_when_it_applies() {
             vec![NotConverged],
         ),
         (
+            "a fit worse than the corners' noise",
+            good,
+            camera_in_robot(fixed.as_ref(), None),
+            PickOptions {
+                high_reprojection_error: true,
+                ..PickOptions::default()
+            },
+            vec![HighReprojectionError],
+        ),
+        (
             "no covariance",
             no_covariance,
             camera_in_robot(fixed.as_ref(), None),
@@ -450,17 +460,24 @@ fn every_reason_is_given_when_it_applies() {
             );
         }
     }
-    let codes: Vec<&str> = [NoRobotPose, PoseAmbiguous, BelowProbability, NotConverged]
-        .iter()
-        .map(|r| r.as_str())
-        .collect();
+    let codes: Vec<&str> = [
+        NoRobotPose,
+        PoseAmbiguous,
+        BelowProbability,
+        NotConverged,
+        HighReprojectionError,
+    ]
+    .iter()
+    .map(|r| r.as_str())
+    .collect();
     assert_eq!(
         codes,
         [
             "no_robot_pose",
             "pose_ambiguous",
             "below_probability",
-            "not_converged"
+            "not_converged",
+            "high_reprojection_error"
         ]
     );
 }

@@ -49,16 +49,21 @@ pub enum PickReason {
     BelowProbability,
     /// The code's pose estimate did not converge.
     NotConverged,
+    /// The code's pose fits its corners worse than their stated noise allows (a corner
+    /// measured wrong): the covariance, and so the probability, cannot be trusted.
+    HighReprojectionError,
 }
 
 impl PickReason {
-    /// `no_robot_pose`, `pose_ambiguous`, `below_probability`, `not_converged`.
+    /// `no_robot_pose`, `pose_ambiguous`, `below_probability`, `not_converged`,
+    /// `high_reprojection_error`.
     pub const fn as_str(self) -> &'static str {
         match self {
             PickReason::NoRobotPose => "no_robot_pose",
             PickReason::PoseAmbiguous => "pose_ambiguous",
             PickReason::BelowProbability => "below_probability",
             PickReason::NotConverged => "not_converged",
+            PickReason::HighReprojectionError => "high_reprojection_error",
         }
     }
 }
@@ -72,6 +77,8 @@ pub struct PickOptions {
     pub pose_ambiguous: bool,
     /// The estimate did not converge.
     pub not_converged: bool,
+    /// The estimate fits its corners worse than their stated noise allows.
+    pub high_reprojection_error: bool,
     /// The probability that the code's true pose is the planar ambiguity's other one (the
     /// mirror, tens of degrees away: no grasp planned from this pose lands within tolerance
     /// then), in [0, 1]; 0 when there is none.
@@ -84,6 +91,7 @@ impl Default for PickOptions {
             min_grasp_probability: DEFAULT_MIN_GRASP_PROBABILITY,
             pose_ambiguous: false,
             not_converged: false,
+            high_reprojection_error: false,
             alternative_probability: 0.0,
         }
     }
@@ -175,6 +183,10 @@ fn reasons_for(
         (options.pose_ambiguous, PickReason::PoseAmbiguous),
         (below, PickReason::BelowProbability),
         (options.not_converged, PickReason::NotConverged),
+        (
+            options.high_reprojection_error,
+            PickReason::HighReprojectionError,
+        ),
     ]
     .into_iter()
     .filter_map(|(applies, reason)| applies.then_some(reason))
