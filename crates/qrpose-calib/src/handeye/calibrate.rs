@@ -188,16 +188,7 @@ fn fit(
     let y = target_from_mount(&g, &x, &c).ok_or(singular)?;
     let views: Vec<ViewData> = used.iter().map(|&i| read[i].data.clone()).collect();
     let reported: Vec<Pose> = used.iter().map(|&i| read[i].reported).collect();
-    let noise = options.flange_noise;
-    let (sr, st) = (noise.rotation_std_rad, noise.translation_std_mm);
-    let problem = Problem {
-        setup,
-        k,
-        lens,
-        views: &views,
-        reported: &reported,
-        prior_std: Vector6::new(sr, sr, sr, st, st, st),
-    };
+    let problem = Problem::new(setup, (k, lens), &views, &reported, options.flange_noise);
     let mut state = State {
         x,
         y,
@@ -513,16 +504,7 @@ fn assemble(
 ) -> Result<HandEyeCalibration, HandEyeError> {
     let views: Vec<ViewData> = fitted.used.iter().map(|&i| read[i].data.clone()).collect();
     let reported: Vec<Pose> = fitted.used.iter().map(|&i| read[i].reported).collect();
-    let noise = options.flange_noise;
-    let (sr, st) = (noise.rotation_std_rad, noise.translation_std_mm);
-    let problem = Problem {
-        setup,
-        k,
-        lens,
-        views: &views,
-        reported: &reported,
-        prior_std: Vector6::new(sr, sr, sr, st, st, st),
-    };
+    let problem = Problem::new(setup, (k, lens), &views, &reported, options.flange_noise);
     let covariance: Matrix6<f64> = joint::mount_covariance(&problem, &fitted.state, fitted.loss)
         .ok_or(HandEyeError::SolveFailed(SolveFailure::SingularSystem))?;
     let (x, y) = (fitted.state.x, fitted.state.y);

@@ -172,12 +172,7 @@ mod tests {
     use super::*;
     use crate::handeye::rigid::difference;
 
-    fn pose(rx: f64, ry: f64, rz: f64, t: [f64; 3]) -> Pose {
-        Pose {
-            r: Rotation3::from_euler_angles(rx, ry, rz),
-            t_mm: Vector3::from(t),
-        }
-    }
+    use crate::handeye::rigid::tests::pose;
 
     #[test]
     fn park_martin_recovers_an_exact_mount_and_target() {

@@ -21,7 +21,7 @@
 //! (the pixel residuals are whitened by σ̂, the priors by S); its first 6 × 6 block is the
 //! mount's, marginalised over the target and the flange corrections.
 
-use super::input::HandEyeSetup;
+use super::input::{FlangeNoise, HandEyeSetup};
 use super::rigid::{compose, d_inverse, d_left, d_right, difference, inverse};
 use crate::error::SolveFailure;
 use crate::lm::ViewData;
@@ -51,6 +51,28 @@ pub(crate) struct Problem<'a> {
     pub reported: &'a [Pose],
     /// S's diagonal (σ_θ × 3 rad, σ_t × 3 mm).
     pub prior_std: Vector6<f64>,
+}
+
+impl<'a> Problem<'a> {
+    /// The fit of `views` with their reported flange poses, the flange noise of `noise`
+    /// as the prior's standard deviations.
+    pub fn new(
+        setup: HandEyeSetup,
+        camera: (&'a Intrinsics, &'a Distortion),
+        views: &'a [ViewData],
+        reported: &'a [Pose],
+        noise: FlangeNoise,
+    ) -> Self {
+        let (sr, st) = (noise.rotation_std_rad, noise.translation_std_mm);
+        Self {
+            setup,
+            k: camera.0,
+            lens: camera.1,
+            views,
+            reported,
+            prior_std: Vector6::new(sr, sr, sr, st, st, st),
+        }
+    }
 }
 
 /// The unknowns.
@@ -288,14 +310,8 @@ pub(crate) fn mount_covariance(p: &Problem, state: &State, loss: Huber) -> Optio
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Rotation3, Vector3};
 
-    fn pose(rx: f64, ry: f64, rz: f64, t: [f64; 3]) -> Pose {
-        Pose {
-            r: Rotation3::from_euler_angles(rx, ry, rz),
-            t_mm: Vector3::from(t),
-        }
-    }
+    use crate::handeye::rigid::tests::pose;
 
     #[test]
     fn the_chained_jacobians_match_central_differences() {

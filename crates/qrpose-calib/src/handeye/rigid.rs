@@ -122,10 +122,11 @@ pub(crate) fn d_inverse(a: &Pose) -> Matrix6<f64> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn pose(rx: f64, ry: f64, rz: f64, t: [f64; 3]) -> Pose {
+    /// A pose from Euler angles (rad) and a translation (mm), for the tests of the module.
+    pub(crate) fn pose(rx: f64, ry: f64, rz: f64, t: [f64; 3]) -> Pose {
         Pose {
             r: Rotation3::from_euler_angles(rx, ry, rz),
             t_mm: Vector3::from(t),
