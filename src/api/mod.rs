@@ -25,6 +25,7 @@ pub mod request;
 pub mod response;
 pub mod robot;
 pub mod site;
+pub mod solver;
 pub mod stream;
 
 pub use corners::estimate_corners;

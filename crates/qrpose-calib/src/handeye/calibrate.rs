@@ -5,9 +5,14 @@
 use super::closed_form::{mount_from_motions, target_from_mount, view_pose};
 use super::input::{
     HandEyeOptions, HandEyeSetup, HandEyeView, MIN_HAND_EYE_POINTS, MIN_HAND_EYE_VIEWS,
+    check_finite, check_options,
 };
 use super::joint::{self, Problem, State, camera_pose_of};
 use super::motion::{MIN_AXIS_SPREAD_RAD, axis_spread_rad, largest_rotation_rad};
+use super::outliers::{
+    MAX_OUTLIER_FRACTION, MIN_CODE_AREA_FRACTION, UsedFit, code_area_fraction, rms, view_residuals,
+    worst_outlier,
+};
 use super::report::{
     HandEyeCalibration, HandEyeError, HandEyeViewReport, HandEyeWarning, covariance_in_own_axes,
 };
@@ -16,9 +21,9 @@ use crate::error::SolveFailure;
 use crate::fit::{MAX_ROBUST_ROUNDS, SCALE_SETTLED};
 use crate::input::ImageSize;
 use crate::lm::ViewData;
-use crate::model::{Intrinsics, Pose, project};
-use crate::robust::{Huber, median, robust_sigma_px};
-use nalgebra::{Matrix6, Point2, Vector2, Vector3, Vector6};
+use crate::model::{Intrinsics, Pose};
+use crate::robust::{Huber, robust_sigma_px};
+use nalgebra::{Matrix6, Vector2, Vector3, Vector6};
 use qrpose_core::geometry::camera::{Camera, Distortion, ImageUnit};
 use qrpose_core::geometry::marker::Marker;
 
@@ -30,28 +35,6 @@ pub const RECOMMENDED_HAND_EYE_VIEWS: usize = 8;
 /// Largest rotation between two views below which `small_rotations` is raised (20°): the
 /// mount's translation error grows as the flange noise over the rotation angle.
 pub const MIN_ROTATION_SPREAD_RAD: f64 = 20.0 * std::f64::consts::PI / 180.0;
-
-/// A view whose flange correction exceeds this many standard deviations of the flange
-/// noise (√ of its six squared normalised components) is an outlier: for a correct pose
-/// the squared length is at most χ²(6), which exceeds 25 with probability 3·10⁻⁴.
-pub const OUTLIER_FLANGE_SIGMAS: f64 = 5.0;
-
-/// A view whose reprojection RMS exceeds this many times the median view's (and
-/// [`OUTLIER_RMS_FLOOR_PX`]) is an outlier.
-pub const OUTLIER_RMS_RATIO: f64 = 3.0;
-
-/// Reprojection RMS below which no view is an outlier for its pixels, px: sub-pixel
-/// corners of a sharp code are all within it.
-pub const OUTLIER_RMS_FLOOR_PX: f64 = 0.5;
-
-/// At most this fraction of the views read may be left out as outliers (a quarter): more
-/// disagreement means the data, not a few views, are wrong.
-pub const MAX_OUTLIER_FRACTION: f64 = 0.25;
-
-/// A view whose code covers less than this fraction of the image (1 %: a 120 mm code
-/// beyond ~1 m with a 1000 px focal length, under 96 × 96 px of a 1280 × 720 image) raises
-/// `little_image_coverage`.
-pub const MIN_CODE_AREA_FRACTION: f64 = 0.01;
 
 /// A view that could be used: its index, points, own pose of the code and reported G_i.
 struct ReadView {
@@ -75,50 +58,6 @@ fn intrinsics_of(camera: &Camera) -> Intrinsics {
         *c = v;
     }
     k
-}
-
-fn check_options(options: &HandEyeOptions) -> Result<(), HandEyeError> {
-    let checks = [
-        (
-            "translation_std_mm",
-            options.flange_noise.translation_std_mm,
-        ),
-        ("rotation_std_rad", options.flange_noise.rotation_std_rad),
-        ("loss_scale_px", options.loss_scale_px.unwrap_or(1.0)),
-    ];
-    for (name, value) in checks {
-        if !(value.is_finite() && value > 0.0) {
-            return Err(HandEyeError::InvalidOption { name, value });
-        }
-    }
-    if options.max_iterations == 0 {
-        return Err(HandEyeError::InvalidOption {
-            name: "max_iterations",
-            value: 0.0,
-        });
-    }
-    Ok(())
-}
-
-fn check_finite(views: &[HandEyeView]) -> Result<(), HandEyeError> {
-    for (view, v) in views.iter().enumerate() {
-        let pose_ok = v
-            .flange_pose
-            .translation
-            .vector
-            .iter()
-            .all(|x| x.is_finite())
-            && v.flange_pose.rotation.coords.iter().all(|x| x.is_finite());
-        let points_ok = v.correspondences.iter().all(|c| {
-            [c.target_mm.x, c.target_mm.y, c.pixel_px.u(), c.pixel_px.v()]
-                .iter()
-                .all(|x| x.is_finite())
-        });
-        if !(pose_ok && points_ok) {
-            return Err(HandEyeError::NonFinite { view });
-        }
-    }
-    Ok(())
 }
 
 /// G_i of the reported flange pose (closed_form module doc).
@@ -230,23 +169,6 @@ fn fit(
     })
 }
 
-/// RMS of residual lengths, px.
-fn rms(residuals: &[Vector2<f64>]) -> f64 {
-    if residuals.is_empty() {
-        return 0.0;
-    }
-    #[allow(clippy::cast_precision_loss)]
-    let n = residuals.len() as f64;
-    (residuals.iter().map(Vector2::norm_squared).sum::<f64>() / n).sqrt()
-}
-
-/// A used view's fit: RMS, px, and its flange correction in flange-noise units.
-struct UsedFit {
-    rms_px: f64,
-    flange_sigmas: f64,
-    correction: Vector6<f64>,
-}
-
 fn used_fits(
     setup: HandEyeSetup,
     k: &Intrinsics,
@@ -273,78 +195,6 @@ fn used_fits(
             }
         })
         .collect()
-}
-
-fn view_residuals(
-    k: &Intrinsics,
-    lens: &Distortion,
-    c: &Pose,
-    data: &ViewData,
-) -> Vec<Vector2<f64>> {
-    data.target_mm
-        .iter()
-        .zip(&data.pixel_px)
-        .filter_map(|(m, uv)| project(k, lens, c, m).map(|q| q - uv))
-        .collect()
-}
-
-/// The position in `fitted.used` of the worst outlier, if any (module constants).
-fn worst_outlier(fits: &[UsedFit]) -> Option<usize> {
-    let rms: Vec<f64> = fits.iter().map(|f| f.rms_px).collect();
-    let median_rms = median(&rms)?;
-    let badness = |f: &UsedFit| {
-        let flange = f.flange_sigmas / OUTLIER_FLANGE_SIGMAS;
-        let pixels = if f.rms_px > OUTLIER_RMS_FLOOR_PX {
-            f.rms_px / (OUTLIER_RMS_RATIO * median_rms)
-        } else {
-            0.0
-        };
-        flange.max(pixels)
-    };
-    fits.iter()
-        .enumerate()
-        .map(|(i, f)| (i, badness(f)))
-        .filter(|&(_, b)| b > 1.0)
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(i, _)| i)
-}
-
-/// The fraction of the image the code's extent covers in `pose`.
-fn code_area_fraction(
-    k: &Intrinsics,
-    lens: &Distortion,
-    pose: &Pose,
-    data: &ViewData,
-    image: ImageSize,
-) -> f64 {
-    let Some(first) = data.target_mm.first() else {
-        return 0.0;
-    };
-    let (lo, hi) = data
-        .target_mm
-        .iter()
-        .fold((*first, *first), |(lo, hi), m| (lo.inf(m), hi.sup(m)));
-    let corners = [
-        Point2::new(lo.x, lo.y),
-        Point2::new(hi.x, lo.y),
-        Point2::new(hi.x, hi.y),
-        Point2::new(lo.x, hi.y),
-    ];
-    let projected: Option<Vec<Vector2<f64>>> =
-        corners.iter().map(|m| project(k, lens, pose, m)).collect();
-    let Some(p) = projected else {
-        return 0.0;
-    };
-    // Shoelace.
-    let area = 0.5
-        * (0..4)
-            .map(|i| {
-                let (a, b) = (p[i], p[(i + 1) % 4]);
-                a.x * b.y - b.x * a.y
-            })
-            .sum::<f64>()
-            .abs();
-    area / (image.width() * image.height())
 }
 
 /// Calibrates a camera's mount on a robot from photos of one printed code (module doc of

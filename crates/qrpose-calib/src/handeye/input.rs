@@ -1,6 +1,7 @@
 //! What a hand-eye calibration is given: the setup, the views (each the points read in one
 //! photo and the flange pose the controller reported for it) and the options.
 
+use super::report::HandEyeError;
 use crate::input::Correspondence;
 use nalgebra::Isometry3;
 
@@ -117,4 +118,48 @@ impl Default for HandEyeOptions {
             max_iterations: DEFAULT_HAND_EYE_MAX_ITERATIONS,
         }
     }
+}
+
+pub(super) fn check_options(options: &HandEyeOptions) -> Result<(), HandEyeError> {
+    let checks = [
+        (
+            "translation_std_mm",
+            options.flange_noise.translation_std_mm,
+        ),
+        ("rotation_std_rad", options.flange_noise.rotation_std_rad),
+        ("loss_scale_px", options.loss_scale_px.unwrap_or(1.0)),
+    ];
+    for (name, value) in checks {
+        if !(value.is_finite() && value > 0.0) {
+            return Err(HandEyeError::InvalidOption { name, value });
+        }
+    }
+    if options.max_iterations == 0 {
+        return Err(HandEyeError::InvalidOption {
+            name: "max_iterations",
+            value: 0.0,
+        });
+    }
+    Ok(())
+}
+
+pub(super) fn check_finite(views: &[HandEyeView]) -> Result<(), HandEyeError> {
+    for (view, v) in views.iter().enumerate() {
+        let pose_ok = v
+            .flange_pose
+            .translation
+            .vector
+            .iter()
+            .all(|x| x.is_finite())
+            && v.flange_pose.rotation.coords.iter().all(|x| x.is_finite());
+        let points_ok = v.correspondences.iter().all(|c| {
+            [c.target_mm.x, c.target_mm.y, c.pixel_px.u(), c.pixel_px.v()]
+                .iter()
+                .all(|x| x.is_finite())
+        });
+        if !(pose_ok && points_ok) {
+            return Err(HandEyeError::NonFinite { view });
+        }
+    }
+    Ok(())
 }

@@ -18,7 +18,8 @@
 //! | `closed_form` | each view's pose of the code; Park and Martin's mount; the target from it |
 //! | `motion` | the two-axes check (`degenerate_motion`), the rotation spread |
 //! | `joint` | the robust Levenberg-Marquardt over mount, target and flange corrections; the covariance |
-//! | `calibrate` | checks, outlier views, warnings, assembly ([`calibrate_hand_eye`]) |
+//! | `calibrate` | checks, rounds of outlier views, warnings, assembly ([`calibrate_hand_eye`]) |
+//! | `outliers` | each view's residuals, the outlier test, the code's share of the image |
 //! | `report` | the answer, warnings, errors, the `mount:` YAML |
 //!
 //! The method: each view's pose of the code from its points (homography, then the
@@ -35,19 +36,21 @@ mod closed_form;
 mod input;
 mod joint;
 mod motion;
+mod outliers;
 mod report;
 mod rigid;
 
-pub use calibrate::{
-    MAX_OUTLIER_FRACTION, MIN_CODE_AREA_FRACTION, MIN_ROTATION_SPREAD_RAD, OUTLIER_FLANGE_SIGMAS,
-    OUTLIER_RMS_FLOOR_PX, OUTLIER_RMS_RATIO, RECOMMENDED_HAND_EYE_VIEWS, calibrate_hand_eye,
-};
+pub use calibrate::{MIN_ROTATION_SPREAD_RAD, RECOMMENDED_HAND_EYE_VIEWS, calibrate_hand_eye};
 pub use input::{
     DEFAULT_FLANGE_ROTATION_STD_RAD, DEFAULT_FLANGE_TRANSLATION_STD_MM,
     DEFAULT_HAND_EYE_MAX_ITERATIONS, FlangeNoise, HandEyeOptions, HandEyeSetup, HandEyeView,
     MIN_HAND_EYE_POINTS, MIN_HAND_EYE_VIEWS,
 };
 pub use motion::{MIN_AXIS_ROTATION_RAD, MIN_AXIS_SPREAD_RAD};
+pub use outliers::{
+    MAX_OUTLIER_FRACTION, MIN_CODE_AREA_FRACTION, OUTLIER_FLANGE_SIGMAS, OUTLIER_RMS_FLOOR_PX,
+    OUTLIER_RMS_RATIO,
+};
 pub use report::{
     HandEyeCalibration, HandEyeError, HandEyeViewReport, HandEyeWarning, site_mount_yaml,
 };
