@@ -3,6 +3,9 @@
 // z forward; pixels with integer coordinates at pixel centres; p_cam = R·p_marker + t.
 // Stable hooks for tests and people: ids, and data-field / data-value on every number.
 // The live camera mode (GET /v1/stream) is camera.js, which uses the helpers below.
+// A code whose payload names a product of the site (pose.object, docs/pick.md) also gets its
+// box and each grasp's approach axis drawn, as the server's annotated image draws them
+// (src/annotate/overlay.rs), and its grasps listed.
 // With an auth file on the service (docs/security.md), a 401 asks for a bearer token, kept
 // for this tab only (sessionStorage) and sent with every call after it.
 "use strict";
@@ -13,6 +16,20 @@ const SITE_PATH = "/v1/site";
 const AXIS_COLOURS = ["#ff0000", "#00c000", "#0000ff"];
 const OUTLINE_COLOUR = "#ffff00";
 const CORNER_COLOUR = "#ff00ff";
+/** A product's box, and a grasp's approach axis when graspable and when not (the server's
+ * overlay colours: src/annotate/overlay.rs BOX, GRASPABLE, NOT_GRASPABLE). */
+const BOX_COLOUR = "#00ffff";
+const GRASPABLE_COLOUR = "#40ff40";
+const NOT_GRASPABLE_COLOUR = "#ff8000";
+/** The box's twelve edges as pairs of corner indices; corner k has the sign (−, +) of x, y,
+ * z from bits 0, 1, 2 of k (the server's BOX_EDGES and box_corners). */
+const BOX_EDGES = [[0, 1], [1, 3], [3, 2], [2, 0], [4, 5], [5, 7], [7, 6], [6, 4], [0, 4], [1, 5], [2, 6], [3, 7]];
+const PICK_REASON_TEXT = {
+  no_robot_pose: "the camera's pose in the robot frame is unknown (no mount, or a camera on the flange without the arm's pose)",
+  pose_ambiguous: "the code's pose cannot be told from its mirror",
+  below_probability: "the probability of landing within tolerance is below the least asked for, or unknown",
+  not_converged: "the code's pose estimate did not converge",
+};
 const DEG_PER_RAD = 180 / Math.PI;
 
 const WARNING_TEXT = {
@@ -138,6 +155,8 @@ function requestJson(camera) {
   const body = { camera: camera.request, effort: $("effort").value };
   const size = numberOrNull("marker-size-mm");
   if (size !== null) body.marker = { size_mm: size };
+  const least = numberOrNull("min-grasp-probability");
+  if (least !== null) body.min_grasp_probability = least;
   return JSON.stringify(body).replace(/;/g, "\\u003b");
 }
 
@@ -215,6 +234,29 @@ function axesOf(marker) {
   return { pose: main, alternative };
 }
 
+/** A product's strokes (src/annotate/overlay.rs, object_segments): its box's edges and each
+ * grasp's approach axis, a stroke along the grasp frame's z ending at the grasp point, half
+ * the box's longest side long; a stroke with an end behind the camera is left out. */
+function objectStrokes(camera, object) {
+  const c = vec(object.pose.position_mm), r = object.pose.rotation.matrix, size = object.box_mm;
+  const corners = [];
+  for (let k = 0; k < 8; k++) {
+    const local = [0, 1, 2].map((axis) => ((k >> axis) & 1 ? 0.5 : -0.5) * size[axis]);
+    corners.push(project(camera, [0, 1, 2].map((row) => c[row] + r[row][0] * local[0] + r[row][1] * local[1] + r[row][2] * local[2])));
+  }
+  const edges = BOX_EDGES.filter(([a, b]) => corners[a] && corners[b])
+    .map(([a, b]) => ({ corners: [a, b], from: corners[a], to: corners[b] }));
+  const length = 0.5 * Math.max(...size);
+  const grasps = object.grasps.map((grasp, index) => {
+    const m = grasp.pose.rotation.matrix, at = vec(grasp.pose.position_mm);
+    const from = project(camera, [0, 1, 2].map((row) => at[row] - m[row][2] * length));
+    const to = project(camera, at);
+    const colour = grasp.graspable ? GRASPABLE_COLOUR : NOT_GRASPABLE_COLOUR;
+    return from && to ? { index, name: grasp.name, from, to, colour } : null;
+  }).filter(Boolean);
+  return { edges, grasps };
+}
+
 // ---- drawing -----------------------------------------------------------------------------
 
 function line(ctx, from, to, colour, width, dashed) {
@@ -250,6 +292,13 @@ function draw() {
   response.markers.forEach((marker) => {
     const c = marker.corners_px;
     for (let k = 0; k < 4; k++) line(ctx, c[k], c[(k + 1) % 4], OUTLINE_COLOUR, stroke, false);
+    const object = marker.pose && marker.pose.object;
+    const camera = state.camera;
+    const strokes = object && camera && camera.fx > 0 && camera.fy > 0 ? objectStrokes(camera, object) : null;
+    if (strokes) {
+      for (const edge of strokes.edges) line(ctx, edge.from, edge.to, BOX_COLOUR, stroke, false);
+      for (const grasp of strokes.grasps) line(ctx, grasp.from, grasp.to, grasp.colour, stroke, false);
+    }
     const axes = axesOf(marker);
     if (axes.pose) drawAxes(ctx, axes.pose, stroke, false);
     const alternativeDrawn = showAlternative && axes.alternative !== null;
@@ -270,11 +319,11 @@ function draw() {
     ctx.fillRect(left, boxTop, boxWidth, fontPx * 1.4);
     ctx.fillStyle = "#fff";
     ctx.fillText(text, left + stroke * 2, boxTop + fontPx * 1.1);
-    drawn.push({ pose: axes.pose, alternative: alternativeDrawn ? axes.alternative : null });
+    drawn.push({ pose: axes.pose, alternative: alternativeDrawn ? axes.alternative : null, object: strokes });
   });
-  const missing = response.markers.some((m, k) => m.pose && !drawn[k].pose);
+  const missing = response.markers.some((m, k) => m.pose && (!drawn[k].pose || (m.pose.object && !drawn[k].object)));
   $("axes-note").textContent = missing
-    ? "Axes are not drawn for this camera: the page knows no intrinsics for it (or its lens model is not plumb_bob). Download the annotated image to see them."
+    ? "Axes (and products' boxes and grasps) are not drawn for this camera: the page knows no intrinsics for it (or its lens model is not plumb_bob). Download the annotated image to see them."
     : "";
   canvas.dataset.axes = JSON.stringify(drawn);
   canvas.dataset.alternativeShown = String(showAlternative);
@@ -377,7 +426,44 @@ function markerCard(marker, index) {
   card.append(dl);
   if (diag.warnings.length > 0) card.append(warningList(diag.warnings));
   else card.append(el("p", { class: "hint", "data-field": "warnings" }, "No warnings."));
+  if (pose.object) card.append(productSection(pose.object));
   return card;
+}
+
+/** The product a code names (docs/pick.md): its rule, box and one row per grasp (name, kind,
+ * probability of landing within tolerance, graspable, and what forbids it). */
+function productSection(object) {
+  const section = el("section", { class: "product", "data-field": "object", "data-rule": object.rule });
+  section.append(el("h4", {}, "Product (" + object.rule + "), box " + object.box_mm.map((v) => fixed(v, 0)).join(" × ") + " mm"));
+  const legend = el("p", { class: "hint legend" });
+  legend.append(el("span", { class: "swatch box" }), " box ", el("span", { class: "swatch graspable" }), " graspable ",
+    el("span", { class: "swatch not-graspable" }), " not graspable: each grasp's approach axis, ending at the grasp point.");
+  section.append(legend);
+  const table = el("table", { class: "grasps" });
+  const head = el("tr");
+  for (const name of ["grasp", "kind", "within tolerance", "graspable", "why not"]) head.append(el("th", { scope: "col" }, name));
+  table.append(el("thead"), el("tbody"));
+  table.tHead.append(head);
+  object.grasps.forEach((grasp, index) => {
+    const tr = el("tr", { "data-grasp-index": String(index), "data-graspable": String(grasp.graspable) });
+    const p = grasp.within_tolerance_probability;
+    const probability = el("td", { class: "num", "data-field": "within_tolerance_probability" },
+      p === null ? "unknown" : fixed(p * 100, 2) + " %");
+    if (p !== null) probability.dataset.value = String(p);
+    tr.append(
+      el("td", { "data-field": "name" }, grasp.name),
+      el("td", {}, grasp.kind + (grasp.width_mm === null ? "" : ", " + fixed(grasp.width_mm, 1) + " mm")),
+      probability,
+      el("td", { "data-field": "graspable", class: grasp.graspable ? "" : "flag-yes" }, grasp.graspable ? "yes" : "no"),
+      el("td", { "data-field": "reasons", "data-codes": grasp.reasons.join(" ") },
+        grasp.reasons.map((code) => PICK_REASON_TEXT[code] || code).join("; ")),
+    );
+    table.tBodies[0].append(tr);
+  });
+  const wrap = el("div", { class: "table-wrap" });
+  wrap.append(table);
+  section.append(wrap);
+  return section;
 }
 
 function timingTable(timing) {

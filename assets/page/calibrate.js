@@ -3,16 +3,16 @@
 // the camera with each parameter's standard deviation, the warnings, every photo's view (used
 // or why not), each view's points and residual vectors drawn over its photo, every view's
 // points on one image with the answer's coverage grid, and the two files to download. Also
-// switches the page's tabs. Runs after app.js and uses its helpers ($, el, fixed,
-// numberOrNull, apiFetch). Pixels as docs/conventions.md: integer coordinates at pixel
-// centres, so the pixel (u, v) is drawn at canvas ((u + 0.5)·s, (v + 0.5)·s) for a figure
-// drawn s times the photo's size. Stable hooks for tests: ids, data-field / data-value (and
-// data-std) on the numbers, data-view-index on each view's row and figure, data-state on
-// every canvas once drawn.
+// switches the page's tabs (Pose, Calibration, Hand-eye). Runs after app.js and uses its
+// helpers ($, el, fixed, numberOrNull, apiFetch). Pixels as docs/conventions.md: integer
+// coordinates at pixel centres, so the pixel (u, v) is drawn at canvas
+// ((u + 0.5)·s, (v + 0.5)·s) for a figure drawn s times the photo's size. Stable hooks for
+// tests: ids, data-field / data-value (and data-std) on the numbers, data-view-index on each
+// view's row and figure, data-state on every canvas once drawn.
 "use strict";
 
 const CALIBRATE_PATH = "/v1/calibrate";
-const TABS = ["tab-pose", "tab-calibration"];
+const TABS = ["tab-pose", "tab-calibration", "tab-hand-eye"];
 /** Largest side a figure is drawn at, px: a 12-megapixel photo need not be kept whole. */
 const FIGURE_MAX_PX = 960;
 /** Point colours: a full inlier, a point the fit down-weighted, a point of a view without a

@@ -6,17 +6,21 @@
 //! console error, every control labelled and keyboard use alone enough. The live camera mode
 //! (a fake camera playing a rendered video, over `GET /v1/stream`) is tested in [`camera`];
 //! the token prompt of a service with an auth file in [`auth`]; the calibration tab (rendered
-//! photos of a printed code dropped in, `POST /v1/calibrate`) in [`calibrate`].
+//! photos of a printed code dropped in, `POST /v1/calibrate`) in [`calibrate`]; the hand-eye
+//! tab (rendered photos and pasted robot poses, `POST /v1/calibrate/hand-eye`) in
+//! [`hand_eye`]; a product's box and grasps drawn over a photo of its code in [`pick`].
 //!
 //! Needs `/usr/bin/chromium` and `/usr/bin/chromedriver` (Debian's `chromium` and
 //! `chromium-driver`: `.ci/run` installs them, and so do these tests when they are missing and
 //! `apt-get` can) and `curl`; fails without them.
-//! `QRPOSE_WRITE_SCREENSHOTS=1` writes the desktop, phone, live camera and calibration tab
-//! screenshots to `docs/img/`.
+//! `QRPOSE_WRITE_SCREENSHOTS=1` writes the desktop, phone, live camera, calibration tab and
+//! hand-eye tab screenshots to `docs/img/`.
 
 mod auth;
 mod calibrate;
 mod camera;
+mod hand_eye;
+mod pick;
 #[path = "../support/mod.rs"]
 mod support;
 mod webdriver;
@@ -254,8 +258,8 @@ fn the_page_loads_fast_from_this_server_alone_with_every_control_labelled() {
     let resources = timing["resources"].as_array().expect("resources");
     assert_eq!(
         resources.len(),
-        4,
-        "the three scripts and the style sheet: {resources:?}"
+        5,
+        "the four scripts and the style sheet: {resources:?}"
     );
     for url in resources {
         let url = url.as_str().expect("a URL");

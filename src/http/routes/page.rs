@@ -1,5 +1,5 @@
 //! `GET /`: the setup page for integrators (README, Setup page), and its scripts and style
-//! sheet. All five are compiled into the binary from `assets/page/`; the page fetches
+//! sheet. All six are compiled into the binary from `assets/page/`; the page fetches
 //! nothing but these and the API of the same server (its live camera mode opens the
 //! WebSocket `GET /v1/stream` of the same host and port), which its Content-Security-Policy
 //! enforces, so it works on a machine without network.
@@ -18,6 +18,9 @@ pub const SCRIPT_PATH: &str = "/page/app.js";
 pub const CAMERA_SCRIPT_PATH: &str = "/page/camera.js";
 /// The calibration tab's script (sends photos to `POST /v1/calibrate`, shows the answer).
 pub const CALIBRATE_SCRIPT_PATH: &str = "/page/calibrate.js";
+/// The hand-eye tab's script (sends photos and robot poses to `POST /v1/calibrate/hand-eye`,
+/// shows the answer).
+pub const HAND_EYE_SCRIPT_PATH: &str = "/page/handeye.js";
 /// The style sheet's path.
 pub const STYLE_PATH: &str = "/page/app.css";
 
@@ -25,6 +28,7 @@ const PAGE_HTML: &str = include_str!("../../../assets/page/index.html");
 const SCRIPT_JS: &str = include_str!("../../../assets/page/app.js");
 const CAMERA_SCRIPT_JS: &str = include_str!("../../../assets/page/camera.js");
 const CALIBRATE_SCRIPT_JS: &str = include_str!("../../../assets/page/calibrate.js");
+const HAND_EYE_SCRIPT_JS: &str = include_str!("../../../assets/page/handeye.js");
 const STYLE_CSS: &str = include_str!("../../../assets/page/app.css");
 
 /// Same-origin only: the page, its scripts and style, the API; photos are drawn from a
@@ -85,6 +89,10 @@ async fn calibrate_script() -> impl IntoResponse {
     asset("text/javascript; charset=utf-8", CALIBRATE_SCRIPT_JS)
 }
 
+async fn hand_eye_script() -> impl IntoResponse {
+    asset("text/javascript; charset=utf-8", HAND_EYE_SCRIPT_JS)
+}
+
 async fn style() -> impl IntoResponse {
     asset("text/css; charset=utf-8", STYLE_CSS)
 }
@@ -95,5 +103,6 @@ pub fn assets() -> Router<AppState> {
         .route(SCRIPT_PATH, get(script))
         .route(CAMERA_SCRIPT_PATH, get(camera_script))
         .route(CALIBRATE_SCRIPT_PATH, get(calibrate_script))
+        .route(HAND_EYE_SCRIPT_PATH, get(hand_eye_script))
         .route(STYLE_PATH, get(style))
 }
