@@ -15,7 +15,7 @@ use crate::app::{
 };
 use crate::detect::CancelFlag;
 use nalgebra::{Isometry3, Rotation3, Vector3};
-use qrpose_calib::handeye::{HandEyeSetup, HandEyeWarning};
+use qrpose_calib::handeye::{FlangeNoise, HandEyeSetup, HandEyeWarning};
 use qrpose_site::transform::Rigid;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -61,6 +61,47 @@ pub struct HandEyeRequest {
     /// T_robot←flange when each photo was taken, one per photo, in order: as the controller
     /// reports it (`docs/hand-eye.md`, Robot poses).
     pub flange_poses: Vec<RobotPoseDto>,
+    /// How noisy the controller's flange poses are (its repeatability); default 0.2 mm and
+    /// 0.02° per axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flange_noise: Option<FlangeNoiseDto>,
+}
+
+/// One standard deviation of a reported flange pose, per axis.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FlangeNoiseDto {
+    /// Of each position coordinate, mm, in [1e-4, 100].
+    #[schema(minimum = 1e-4, maximum = 100, example = 0.2)]
+    pub translation_mm: f64,
+    /// Of the rotation about each axis, degrees, in [1e-5, 10].
+    #[schema(minimum = 1e-5, maximum = 10, example = 0.02)]
+    pub rotation_deg: f64,
+}
+
+impl FlangeNoiseDto {
+    /// The calibration's flange noise.
+    ///
+    /// # Errors
+    /// `solver_parameter_out_of_range` at `/flange_noise/…` outside the stated ranges.
+    fn to_noise(self) -> Result<FlangeNoise, Problem> {
+        for (value, name, (low, high)) in [
+            (self.translation_mm, "translation_mm", (1e-4, 100.0)),
+            (self.rotation_deg, "rotation_deg", (1e-5, 10.0)),
+        ] {
+            if !(low..=high).contains(&value) {
+                return Err(Problem::new(
+                    ErrorCode::SolverParameterOutOfRange,
+                    format!("flange_noise.{name} must be in [{low}, {high}], got {value}"),
+                )
+                .with_field(format!("/flange_noise/{name}")));
+            }
+        }
+        Ok(FlangeNoise {
+            translation_std_mm: self.translation_mm,
+            rotation_std_rad: self.rotation_deg.to_radians(),
+        })
+    }
 }
 
 impl HandEyeRequest {
@@ -92,11 +133,17 @@ impl HandEyeRequest {
             .enumerate()
             .map(|(k, pose)| pose.to_rigid(&format!("/flange_poses/{k}")))
             .collect::<Result<_, _>>()?;
+        let flange_noise = self
+            .flange_noise
+            .map(FlangeNoiseDto::to_noise)
+            .transpose()?
+            .unwrap_or_default();
         Ok(HandEyeRequestSetup {
             setup: self.setup.into(),
             camera,
             size,
             flange_poses,
+            flange_noise,
             decode: limits.decode,
             max_detect: limits.max_detect,
         })

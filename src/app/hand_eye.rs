@@ -11,7 +11,7 @@
 use super::calibrate::{PhotoReport, image_size, ms_since, photo_points};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use qrpose_calib::handeye::{
-    HandEyeCalibration, HandEyeError, HandEyeOptions, HandEyeSetup, HandEyeView,
+    FlangeNoise, HandEyeCalibration, HandEyeError, HandEyeOptions, HandEyeSetup, HandEyeView,
     MIN_HAND_EYE_VIEWS, calibrate_hand_eye,
 };
 use qrpose_calib::{Correspondence, ImageSize};
@@ -59,6 +59,8 @@ pub struct HandEyeRequestSetup {
     pub size: TargetSize,
     /// T_robot←flange when each photo was taken, in the photos' order.
     pub flange_poses: Vec<Rigid>,
+    /// How noisy the controller's flange poses are.
+    pub flange_noise: FlangeNoise,
     /// What each photo may cost to decode.
     pub decode: DecodeLimits,
     /// The detection deadline of each photo.
@@ -217,7 +219,10 @@ pub fn calibrate_hand_eye_photos<B: AsRef<[u8]>>(
         &marker,
         &views,
         setup.setup,
-        &HandEyeOptions::default(),
+        &HandEyeOptions {
+            flange_noise: setup.flange_noise,
+            ..HandEyeOptions::default()
+        },
     )?;
     Ok(HandEyeAnswer {
         photos: reports,
@@ -238,6 +243,7 @@ mod tests {
             camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("a camera"),
             size: TargetSize::Given(Marker::try_new(120.0).expect("a size")),
             flange_poses: vec![Rigid::identity(); poses],
+            flange_noise: FlangeNoise::default(),
             decode: DecodeLimits::default(),
             max_detect: Duration::from_secs(5),
         }

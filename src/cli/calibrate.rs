@@ -12,12 +12,13 @@ use super::estimate::{print_json, report_problem};
 use clap::{Args, Subcommand};
 use qrpose::api::calibrate::{CalibrateRequest, respond};
 use qrpose::api::camera::{CameraDto, DistortionDto, DistortionModelDto};
-use qrpose::api::hand_eye::{HandEyeRequest, HandEyeSetupDto};
+use qrpose::api::hand_eye::{FlangeNoiseDto, HandEyeRequest, HandEyeSetupDto};
 use qrpose::api::problem::{Problem, parse_json};
 use qrpose::api::request::MarkerDto;
 use qrpose::api::robot::RobotPoseDto;
 use qrpose::app::ImageLimits;
 use qrpose::detect::cancel::CancelFlag;
+use qrpose_calib::handeye::{DEFAULT_FLANGE_ROTATION_STD_RAD, DEFAULT_FLANGE_TRANSLATION_STD_MM};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -67,6 +68,12 @@ pub struct HandEyeArgs {
     /// "euler_zyx_deg": [...]}` (docs/hand-eye.md).
     #[arg(long, value_name = "POSES.json")]
     pub flange_poses: PathBuf,
+    /// The controller's flange position noise (repeatability), mm per axis (default 0.2).
+    #[arg(long, value_name = "MM")]
+    pub flange_noise_mm: Option<f64>,
+    /// The controller's flange rotation noise, degrees per axis (default 0.02).
+    #[arg(long, value_name = "DEG")]
+    pub flange_noise_deg: Option<f64>,
     /// Side of the printed code, mm; may be omitted when `--site` sizes its payload.
     #[arg(long, value_name = "MM")]
     pub marker_size_mm: Option<f64>,
@@ -166,6 +173,13 @@ fn hand_eye_request(args: &HandEyeArgs) -> Result<HandEyeRequest, ExitCode> {
         camera: camera_of(args).map_err(|p| report_problem(&p))?,
         marker: args.marker_size_mm.map(|size_mm| MarkerDto { size_mm }),
         flange_poses,
+        flange_noise: match (args.flange_noise_mm, args.flange_noise_deg) {
+            (None, None) => None,
+            (mm, deg) => Some(FlangeNoiseDto {
+                translation_mm: mm.unwrap_or(DEFAULT_FLANGE_TRANSLATION_STD_MM),
+                rotation_deg: deg.unwrap_or(DEFAULT_FLANGE_ROTATION_STD_RAD.to_degrees()),
+            }),
+        },
     })
 }
 

@@ -132,6 +132,43 @@ async fn every_robot_pose_form_of_the_same_motion_gives_the_same_mount() {
 }
 
 #[tokio::test]
+async fn the_controllers_stated_flange_noise_sets_the_mounts_uncertainty() {
+    let app = spawn_app().await;
+    let poses = session::flange_poses(Setup::EyeInHand, &session::views());
+    let mut request = session::request(Setup::EyeInHand, &poses, session::quaternion_json);
+    let default = answer(&app, &request, &PHOTOS).await;
+    request["flange_noise"] = json!({"translation_mm": 2.0, "rotation_deg": 0.2});
+    let noisy = answer(&app, &request, &PHOTOS).await;
+    let std = |body: &Value, key: &str| -> f64 {
+        body["std"][key]
+            .as_array()
+            .expect("three")
+            .iter()
+            .filter_map(Value::as_f64)
+            .sum()
+    };
+    for key in ["rotation_deg", "translation_mm"] {
+        assert!(
+            std(&noisy, key) > 2.0 * std(&default, key),
+            "{key}: {} against {}",
+            std(&noisy, key),
+            std(&default, key)
+        );
+    }
+    request["flange_noise"] = json!({"translation_mm": 0.0, "rotation_deg": 0.02});
+    let problem = assert_problem(
+        calibrate(&app, &request, &PHOTOS).await,
+        422,
+        ErrorCode::SolverParameterOutOfRange,
+    )
+    .await;
+    assert_eq!(
+        problem.field.as_deref(),
+        Some("/flange_noise/translation_mm")
+    );
+}
+
+#[tokio::test]
 async fn not_one_flange_pose_per_photo_is_refused_before_the_photos_are_read() {
     let app = spawn_app().await;
     let poses = session::flange_poses(Setup::EyeInHand, &session::views()[..7]);

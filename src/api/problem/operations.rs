@@ -126,6 +126,7 @@ impl Operation {
                     FlangePosesMismatch,
                     DegenerateMotion,
                     InvalidRobotPose,
+                    SolverParameterOutOfRange,
                     NumericallyDegenerate,
                     CalibrationFailed,
                 ]);
