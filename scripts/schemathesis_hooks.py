@@ -77,6 +77,13 @@ negative data, and its 200 would fail `negative_data_rejection`).
    failure). The `image` parts become views of one code that `qrpose render` made from
    different angles at one size (the paths in QRPOSE_ST_VIEWS, colon-separated), cycled,
    MAX_CALIBRATION_PHOTOS of them at most; the `request` part gets rule 1.
+8. A robot pose's quaternion must be a unit one (within 1e-3, `invalid_robot_pose`): every
+   `quaternion_wxyz` of a `flange_pose` is normalised (a zero one becomes the identity).
+   The photos of `POST /v1/calibrate/hand-eye` (rules: one flange pose per photo,
+   `flange_poses_mismatch`; at least four photos with the code read, `too_few_views`; motions
+   about two axes, `degenerate_motion`) become the views of rule 7, all four, and the
+   request the session they are: the render's camera and code size, and each view's flange
+   pose from its true pose with a fixed mount and target (so the views agree).
 """
 import hashlib
 import json
@@ -107,6 +114,13 @@ _MODEL_COEFFICIENTS = {
 _CORNERS = "/v1/pose/corners"
 _IMAGE_ROUTES = ("/v1/pose/image", "/v1/pose/image/annotated")
 _CALIBRATE = "/v1/calibrate"
+_HAND_EYE = "/v1/calibrate/hand-eye"
+# The views of rule 7 as scripts/schemathesis.sh renders them: 320 × 240, f 1000 px, a 50 mm
+# code whose centre is 250 mm ahead, R = Rx(alpha)·Ry(beta), in QRPOSE_ST_VIEWS's order.
+_VIEW_ANGLES_DEG = [(0.0, 0.0), (25.0, 0.0), (0.0, 25.0), (-20.0, 15.0)]
+_VIEW_CAMERA = {"fx_px": 1000.0, "fy_px": 1000.0, "cx_px": 159.5, "cy_px": 119.5}
+_VIEW_CODE_MM = 50.0
+_VIEW_DEPTH_MM = 250.0
 MAX_CALIBRATION_PHOTOS = 4
 _PIXEL_FORM = ("fx_px", "fy_px", "cx_px", "cy_px")
 _SENSOR_FORM = ("focal_length_mm", "pixel_size_um", "cx_px", "cy_px")
@@ -329,6 +343,96 @@ def _map_image_part(part):
     return part
 
 
+# Rule 8: robot poses.
+
+def _unit_quaternions(value):
+    """`value` with every `quaternion_wxyz` normalised (zero: the identity)."""
+    if isinstance(value, dict):
+        out = {k: _unit_quaternions(v) for k, v in value.items()}
+        q = out.get("quaternion_wxyz")
+        if isinstance(q, list) and len(q) == 4 and all(isinstance(c, (int, float)) for c in q):
+            norm = math.sqrt(sum(c * c for c in q))
+            out["quaternion_wxyz"] = [c / norm for c in q] if norm > 0 else [1.0, 0.0, 0.0, 0.0]
+        return out
+    if isinstance(value, list):
+        return [_unit_quaternions(v) for v in value]
+    return value
+
+
+def _matmul(a, b):
+    return [[sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
+
+
+def _rot_x(deg):
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return [[1, 0, 0], [0, c, -s], [0, s, c]]
+
+
+def _rot_y(deg):
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+
+
+def _pose(r, t):
+    return (r, t)
+
+
+def _compose(a, b):
+    (ra, ta), (rb, tb) = a, b
+    return (_matmul(ra, rb), [sum(ra[i][k] * tb[k] for k in range(3)) + ta[i] for i in range(3)])
+
+
+def _inverse(a):
+    r, t = a
+    rt = [[r[j][i] for j in range(3)] for i in range(3)]
+    return (rt, [-sum(rt[i][k] * t[k] for k in range(3)) for i in range(3)])
+
+
+def _wire(pose):
+    """A pose as the wire's quaternion form (w ≥ 0)."""
+    r, t = pose
+    w = math.sqrt(max(0.0, 1.0 + r[0][0] + r[1][1] + r[2][2])) / 2.0
+    if w > 1e-6:
+        x, y, z = ((r[2][1] - r[1][2]) / (4 * w), (r[0][2] - r[2][0]) / (4 * w),
+                   (r[1][0] - r[0][1]) / (4 * w))
+    else:  # a half turn: never one of the views
+        x, y, z = 1.0, 0.0, 0.0
+    return {"translation_mm": t, "quaternion_wxyz": [w, x, y, z]}
+
+
+def _hand_eye_poses(setup, count):
+    """The flange poses of the first `count` views (cycled) for `setup`, with a fixed mount X
+    and target Y: eye-in-hand F = Y·T_marker←camera·X⁻¹, eye-to-hand F = X·T_camera←marker·Y⁻¹."""
+    mount = _pose(_matmul(_rot_x(10.0), _rot_y(-5.0)), [20.0, -30.0, 80.0])
+    target = _pose(_rot_y(180.0), [600.0, 0.0, 0.0]) if setup == "eye_in_hand" else _pose(
+        _rot_x(5.0), [0.0, 0.0, 120.0])
+    poses = []
+    for i in range(count):
+        alpha, beta = _VIEW_ANGLES_DEG[i % len(_VIEW_ANGLES_DEG)]
+        marker_in_camera = _pose(_matmul(_rot_x(alpha), _rot_y(beta)), [0.0, 0.0, _VIEW_DEPTH_MM])
+        if setup == "eye_in_hand":
+            flange = _compose(_compose(target, _inverse(marker_in_camera)), _inverse(mount))
+        else:
+            flange = _compose(_compose(mount, marker_in_camera), _inverse(target))
+        poses.append(_wire(flange))
+    return poses
+
+
+def _map_hand_eye_form(operation, form):
+    """Rules 1, 3 and 8 for the multipart form of `POST /v1/calibrate/hand-eye`."""
+    request = _within_range(form["request"])
+    request.pop("marker", None)
+    request["marker"] = {"size_mm": _VIEW_CODE_MM}
+    request["camera"] = dict(_VIEW_CAMERA)
+    if _views:
+        form["image"] = list(_views)
+    count = len(form.get("image") or [])
+    request["flange_poses"] = _hand_eye_poses(request.get("setup"), count)
+    form["request"] = request
+    photos = ["photo"] * count
+    _assert_valid_body(operation, "multipart/form-data", {**form, "image": photos})
+
+
 # Validity of what the mappings give.
 
 def _validator(operation, media_type):
@@ -377,9 +481,12 @@ def map_body(context, body):
     if context.operation.path == _CALIBRATE:
         _map_calibrate_form(context.operation, form)
         return body
+    if context.operation.path == _HAND_EYE:
+        _map_hand_eye_form(context.operation, form)
+        return body
     if not _is_image_route(context):
         return body
-    form["request"] = _map_image_part(form["request"])
+    form["request"] = _unit_quaternions(_map_image_part(form["request"]))
     if not isinstance(form.get("image"), (bytes, bytearray)) and _photos:
         form["image"] = _photos[0]
     _assert_valid_body(context.operation, "multipart/form-data", {**form, "image": "photo"})
@@ -393,7 +500,7 @@ def map_case(context, case):
     if not _positive or case.meta is None or not case.meta.generation.mode.is_positive:
         return case
     if case.operation.path == _CORNERS and isinstance(case.body, dict):
-        case.body = _map_corners_request(case.body)
+        case.body = _unit_quaternions(_map_corners_request(case.body))
         _assert_valid_body(case.operation, case.media_type, case.body)
     elif case.operation.path in _IMAGE_ROUTES:
         form = getattr(case.body, "get", lambda _key: None)

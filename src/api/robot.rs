@@ -27,6 +27,7 @@ pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
 #[schema(example = json!({"translation_mm": [412.5, -120.0, 380.2], "quaternion_wxyz": [0.0, 0.6, 0.8, 0.0]}))]
 pub struct RobotPoseDto {
     /// The flange's origin in the robot frame, mm.
+    #[schema(min_items = 3, max_items = 3)]
     pub translation_mm: [f64; 3],
     /// The rotation as a unit quaternion (w, x, y, z) (ABB); |q| within 1e-3 of 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -34,10 +35,12 @@ pub struct RobotPoseDto {
     pub quaternion_wxyz: Option<[f64; 4]>,
     /// The rotation as axis times angle, rad (Universal Robots' rx, ry, rz).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 3, max_items = 3)]
     pub rotation_vector_rad: Option<[f64; 3]>,
     /// The rotation as Z-Y-X Euler angles [a, b, c], degrees: R = Rz(a)·Ry(b)·Rx(c) (KUKA
     /// A, B, C; Fanuc and Yaskawa: send [R, P, W]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(min_items = 3, max_items = 3)]
     pub euler_zyx_deg: Option<[f64; 3]>,
 }
 

@@ -84,6 +84,7 @@ pub fn write_alternatives(doc: &mut Value, served: Served) {
     finders_need_reprojection(doc);
     if !served.site {
         require(doc, "ImageRequest", "marker");
+        require(doc, "HandEyeRequest", "marker");
     }
     if !served.zxing_cpp {
         drop_enum_value(doc, "DetectorDto", "zxing-cpp");
