@@ -18,7 +18,8 @@ use common::{FRAMES, frame};
 use criterion::{Criterion, criterion_group, criterion_main};
 use qrpose::annotate::raster::{Style, draw_overlay};
 use qrpose::annotate::{OutputFormat, annotated_image, codec, overlay};
-use qrpose::api::image::{ImageLimits, ImageQuery, ImageResponse, respond};
+use qrpose::api::image::{ImageLimits, ImageQuery, answer};
+use qrpose::app::ImageAnswer;
 use qrpose::detect::cancel::CancelFlag;
 use qrpose::geometry::camera::Camera;
 use std::hint::black_box;
@@ -43,29 +44,29 @@ fn camera() -> Option<Camera> {
         .map(|setup| setup.pose.camera)
 }
 
-/// What the plain route's job does: estimate and serialise.
-fn plain(jpeg: &[u8]) -> Option<(ImageResponse, Vec<u8>)> {
+/// What the plain route's job does: estimate and serialise (and the answer drawn from).
+fn plain(jpeg: &[u8]) -> Option<(ImageAnswer, Vec<u8>)> {
     let setup = query().setup(&ImageLimits::default(), None).ok()?;
-    let response = respond(&setup, jpeg, CancelFlag::new()).ok()?;
+    let (answer, response) = answer(&setup, jpeg, CancelFlag::new()).ok()?;
     let json = serde_json::to_vec(&response).ok()?;
-    Some((response, json))
+    Some((answer, json))
 }
 
 /// What the annotated route's job does on top: the camera, the drawing, the encoding and
 /// the result header.
 fn annotated(jpeg: &[u8], format: OutputFormat) -> Option<(Vec<u8>, String)> {
-    let (response, json) = plain(jpeg)?;
-    let image = annotated_image(jpeg, &response, &camera()?, format).ok()?;
+    let (answer, json) = plain(jpeg)?;
+    let image = annotated_image(jpeg, &answer, &camera()?, format).ok()?;
     let header = base64::engine::general_purpose::URL_SAFE_NO_PAD.encode(json);
     Some((image, header))
 }
 
 /// The whole-frame path: decode in colour, draw, encode.
-fn whole_frame(jpeg: &[u8], response: &ImageResponse) -> Option<Vec<u8>> {
+fn whole_frame(jpeg: &[u8], answer: &ImageAnswer) -> Option<Vec<u8>> {
     let camera = camera()?;
     let mut raster = codec::decode_rgb(jpeg).ok()?;
     let style = Style::for_image(raster.width_px(), raster.height_px());
-    let overlay = overlay::overlay_of(response, &camera, style.label_height_px());
+    let overlay = overlay::overlay_of(answer, &camera, style.label_height_px());
     draw_overlay(&mut raster, &overlay, &style);
     codec::encode_jpeg(&raster).ok()
 }
@@ -88,7 +89,7 @@ fn bench(c: &mut Criterion) {
     assert_eq!((width_px, height_px), (1280, 720));
     let jpeg = frame(width_px, height_px, f_px);
     assert!(
-        plain(&jpeg).is_some_and(|(r, _)| r.markers.len() == 1),
+        plain(&jpeg).is_some_and(|(a, _)| a.markers.len() == 1),
         "the frame's code must be read"
     );
     c.bench_function("plain 1280x720", |b| b.iter(|| plain(black_box(&jpeg))));
@@ -98,16 +99,16 @@ fn bench(c: &mut Criterion) {
     c.bench_function("annotated png 1280x720", |b| {
         b.iter(|| annotated(black_box(&jpeg), OutputFormat::Png))
     });
-    let Some((response, _)) = plain(&jpeg) else {
+    let Some((drawn, _)) = plain(&jpeg) else {
         return;
     };
     if let Some(camera) = camera() {
         c.bench_function("drawing only, jpeg 1280x720", |b| {
-            b.iter(|| annotated_image(black_box(&jpeg), &response, &camera, OutputFormat::Jpeg))
+            b.iter(|| annotated_image(black_box(&jpeg), &drawn, &camera, OutputFormat::Jpeg))
         });
     }
     c.bench_function("drawing only, whole frame jpeg 1280x720", |b| {
-        b.iter(|| whole_frame(black_box(&jpeg), &response))
+        b.iter(|| whole_frame(black_box(&jpeg), &drawn))
     });
     // The ratio, from interleaved runs so that both see the same machine load.
     let (mut plain_ms, mut annotated_ms) = (Vec::new(), Vec::new());

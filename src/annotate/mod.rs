@@ -1,7 +1,7 @@
 //! Annotated images: the photo with what qrpose found drawn on it, for
 //! `POST /v1/pose/image/annotated` and `qrpose estimate --image … --annotate OUT`.
 //!
-//! [`overlay`] turns an image response and its camera into pixel primitives (outlines,
+//! [`overlay`] turns the application's answer for a photo and its camera into pixel primitives (outlines,
 //! corner marks, payload labels, the projected axes of each pose); [`raster`] draws them.
 //! A JPEG photo asked for as JPEG is spliced by the `jpeg-overlay` crate
 //! (crates/jpeg-overlay): only the 8×8 blocks the overlay touches are re-encoded, the rest
@@ -15,7 +15,7 @@ pub mod codec;
 pub mod overlay;
 pub mod raster;
 
-use crate::api::image::ImageResponse;
+use crate::app::ImageAnswer;
 use crate::detect::decode::{ImageFormat, sniff_format};
 use crate::geometry::camera::Camera;
 pub use codec::CodecError;
@@ -51,8 +51,8 @@ impl OutputFormat {
     }
 }
 
-/// The photo `bytes` with the overlay of `response` drawn on it, encoded as `format`.
-/// `camera` must be the one the poses of `response` were computed with (it projects their
+/// The photo `bytes` with the overlay of `answer` drawn on it, encoded as `format`.
+/// `camera` must be the one the poses of `answer` were computed with (it projects their
 /// axes). CPU-bound: a JPEG asked for as JPEG is spliced (only the blocks drawn into are
 /// re-encoded); anything else, or a JPEG the splice refuses, is decoded, drawn and
 /// encoded whole.
@@ -61,13 +61,13 @@ impl OutputFormat {
 /// [`CodecError`] when the photo cannot be decoded in colour or the result encoded.
 pub fn annotated_image(
     bytes: &[u8],
-    response: &ImageResponse,
+    answer: &ImageAnswer,
     camera: &Camera,
     format: OutputFormat,
 ) -> Result<Vec<u8>, CodecError> {
-    let size_px = (response.image.width_px, response.image.height_px);
+    let size_px = (answer.width_px, answer.height_px);
     annotated_with(bytes, format, size_px, |label_height_px| {
-        overlay::overlay_of(response, camera, label_height_px)
+        overlay::overlay_of(answer, camera, label_height_px)
     })
 }
 

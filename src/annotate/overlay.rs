@@ -1,5 +1,6 @@
-//! What the overlay shows, in pixel coordinates: built from an image response and the camera,
-//! drawn by [`super::raster`]. Pure geometry, no pixels.
+//! What the overlay shows, in pixel coordinates: built from the application's answer for the
+//! photo ([`ImageAnswer`]: the codes, their poses and products) and the camera, drawn by
+//! [`super::raster`]. Pure geometry, no pixels.
 //!
 //! Per code: its outline through the four refined corners, a mark on each corner, its
 //! payload, and the marker frame's axes drawn from the marker centre (`position_mm`),
@@ -13,12 +14,12 @@
 //! the grasp frame's z ending at the grasp point, half the box's longest side long, green
 //! when the grasp is `graspable`, orange when it is not.
 
-use crate::api::image::{ImageResponse, MarkerResultDto};
-use crate::api::pick::ObjectDto;
-use crate::api::response::{PoseResponse, Vec3Mm};
+use crate::app::{ImageAnswer, MarkerAnswer};
+use crate::estimate::PoseEstimate;
 use crate::geometry::camera::Camera;
 use crate::geometry::frames::CameraPoint;
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Matrix3, Point3, Vector3};
+use qrpose_site::pick::ObjectPlan;
 
 /// An sRGB colour.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -97,45 +98,33 @@ pub struct ProjectedAxes {
 
 /// The marker's side, mm, from the pose alone: the centre lies at R·(−l/2, l/2, 0) from P2
 /// (docs/conventions.md, Pose), so |centre − P2| = l/√2 whatever the method.
-pub fn marker_side_mm(pose: &PoseResponse) -> f64 {
-    let c = &pose.position_mm;
-    let p2 = &pose.reference_point_mm;
-    std::f64::consts::SQRT_2 * (c.x - p2.x).hypot(c.y - p2.y).hypot(c.z - p2.z)
+pub fn marker_side_mm(pose: &PoseEstimate) -> f64 {
+    std::f64::consts::SQRT_2 * (pose.centre_mm - pose.pose.0.translation.vector).norm()
 }
 
-fn point(v: &Vec3Mm) -> Point3<f64> {
-    Point3::new(v.x, v.y, v.z)
-}
-
-/// The axes of a pose with centre `centre_mm` and rotation `matrix` (row-major R), each
-/// `length_mm` long, projected through `camera`; `None` when a point is at or behind the
-/// camera.
+/// The axes of a pose with centre `centre_mm` and rotation `r`, each `length_mm` long,
+/// projected through `camera`; `None` when a point is at or behind the camera.
 pub fn project_axes(
     camera: &Camera,
-    centre_mm: &Vec3Mm,
-    matrix: &[[f64; 3]; 3],
+    centre_mm: &Vector3<f64>,
+    r: &Matrix3<f64>,
     length_mm: f64,
 ) -> Option<ProjectedAxes> {
-    let centre = point(centre_mm);
+    let centre = Point3::from(*centre_mm);
     let project = |p: Point3<f64>| camera.project(&CameraPoint(p)).map(|px| [px.u(), px.v()]);
     let origin_px = project(centre)?;
     let mut ends_px = [[0.0; 2]; 3];
     for (axis, end) in ends_px.iter_mut().enumerate() {
         // Column `axis` of R: the marker axis in camera coordinates.
-        let direction = Vector3::new(matrix[0][axis], matrix[1][axis], matrix[2][axis]);
-        *end = project(centre + direction * length_mm)?;
+        *end = project(centre + r.column(axis).into_owned() * length_mm)?;
     }
     Some(ProjectedAxes { origin_px, ends_px })
 }
 
-/// The axes of a marker's reported pose, if it has one in front of the camera.
-pub fn pose_axes(camera: &Camera, pose: &PoseResponse) -> Option<ProjectedAxes> {
-    project_axes(
-        camera,
-        &pose.position_mm,
-        &pose.rotation.matrix,
-        marker_side_mm(pose),
-    )
+/// The axes of a marker's pose, if it is in front of the camera.
+pub fn pose_axes(camera: &Camera, pose: &PoseEstimate) -> Option<ProjectedAxes> {
+    let r = pose.pose.0.rotation.to_rotation_matrix().into_inner();
+    project_axes(camera, &pose.centre_mm, &r, marker_side_mm(pose))
 }
 
 /// The edges of a box with centre `centre`, axes the columns of `matrix` and extents
@@ -157,25 +146,24 @@ const BOX_EDGES: [(usize, usize); 12] = [
 
 /// The eight corners of a box posed at (`centre_mm`, `matrix`) with extents `box_mm`,
 /// camera frame: corner k has sign (−, +) of x, y, z from bits 0, 1, 2 of k.
-fn box_corners(centre_mm: &Vec3Mm, matrix: &[[f64; 3]; 3], box_mm: [f64; 3]) -> [Point3<f64>; 8] {
-    let r = nalgebra::Matrix3::from_fn(|i, j| matrix[i][j]);
+fn box_corners(
+    centre_mm: &Vector3<f64>,
+    r: &Matrix3<f64>,
+    box_mm: &Vector3<f64>,
+) -> [Point3<f64>; 8] {
     std::array::from_fn(|k| {
         let sign = |bit: usize| if k >> bit & 1 == 1 { 0.5 } else { -0.5 };
-        let local = Vector3::new(
-            sign(0) * box_mm[0],
-            sign(1) * box_mm[1],
-            sign(2) * box_mm[2],
-        );
-        point(centre_mm) + r * local
+        let local = Vector3::new(sign(0) * box_mm.x, sign(1) * box_mm.y, sign(2) * box_mm.z);
+        Point3::from(*centre_mm + r * local)
     })
 }
 
 /// The strokes of a product (module docs): its box's edges and each grasp's approach axis,
 /// projected through `camera`; a stroke with an end at or behind the camera is left out.
-pub fn object_segments(camera: &Camera, object: &ObjectDto) -> Vec<Segment> {
+pub fn object_segments(camera: &Camera, object: &ObjectPlan) -> Vec<Segment> {
     let project = |p: Point3<f64>| camera.project(&CameraPoint(p)).map(|px| [px.u(), px.v()]);
-    let pose = &object.pose;
-    let corners = box_corners(&pose.position_mm, &pose.rotation.matrix, object.box_mm);
+    let pose = &object.pose.pose;
+    let corners = box_corners(&pose.translation_mm, pose.rotation.matrix(), &object.box_mm);
     let mut segments: Vec<Segment> = BOX_EDGES
         .iter()
         .filter_map(|&(a, b)| {
@@ -186,11 +174,10 @@ pub fn object_segments(camera: &Camera, object: &ObjectDto) -> Vec<Segment> {
             })
         })
         .collect();
-    let length_mm = 0.5 * object.box_mm.iter().copied().fold(0.0, f64::max);
+    let length_mm = 0.5 * object.box_mm.max();
     for grasp in &object.grasps {
-        let m = &grasp.pose.rotation.matrix;
-        let approach = Vector3::new(m[0][2], m[1][2], m[2][2]);
-        let at = point(&grasp.pose.position_mm);
+        let approach = grasp.pose.pose.rotation.matrix().column(2).into_owned();
+        let at = Point3::from(grasp.pose.pose.translation_mm);
         if let (Some(from_px), Some(to_px)) = (project(at - approach * length_mm), project(at)) {
             segments.push(Segment {
                 from_px,
@@ -223,12 +210,12 @@ pub fn label_text(payload: Option<&str>) -> String {
 const LABEL_GRID_PX: f64 = 8.0;
 
 /// A marker's label, placed by [`label_place`].
-fn label_for(marker: &MarkerResultDto, label_height_px: f64) -> Label {
-    let (anchor_px, below) = label_place(&marker.corners_px, label_height_px);
+fn label_for(corners_px: &[[f64; 2]; 4], payload: Option<&str>, label_height_px: f64) -> Label {
+    let (anchor_px, below) = label_place(corners_px, label_height_px);
     Label {
         anchor_px,
         below,
-        text: label_text(marker.payload.as_deref()),
+        text: label_text(payload),
     }
 }
 
@@ -262,12 +249,17 @@ fn label_place(corners_px: &[[f64; 2]; 4], label_height_px: f64) -> ([f64; 2], b
     ([grid(left, f64::floor), y], below)
 }
 
-/// The overlay of `response`, whose poses were computed with `camera`; labels are
+/// A code's refined corners, px, in the `qr` order of the answer.
+fn corners_of(marker: &MarkerAnswer) -> [[f64; 2]; 4] {
+    marker.code.corners_px().map(|p| [p.u(), p.v()])
+}
+
+/// The overlay of `answer`, whose poses were computed with `camera`; labels are
 /// `label_height_px` tall (for placing them clear of the code).
-pub fn overlay_of(response: &ImageResponse, camera: &Camera, label_height_px: f64) -> Overlay {
+pub fn overlay_of(answer: &ImageAnswer, camera: &Camera, label_height_px: f64) -> Overlay {
     let mut overlay = Overlay::default();
-    for marker in &response.markers {
-        let corners = marker.corners_px;
+    for marker in &answer.markers {
+        let corners = corners_of(marker);
         for k in 0..4 {
             overlay.segments.push(Segment {
                 from_px: corners[k],
@@ -275,10 +267,10 @@ pub fn overlay_of(response: &ImageResponse, camera: &Camera, label_height_px: f6
                 colour: OUTLINE,
             });
         }
-        if let Some(object) = marker.pose.as_ref().and_then(|p| p.object.as_ref()) {
+        if let Some(object) = marker.frames.object.as_ref() {
             overlay.segments.extend(object_segments(camera, object));
         }
-        if let Some(axes) = marker.pose.as_ref().and_then(|p| pose_axes(camera, p)) {
+        if let Some(axes) = marker.pose.as_ref().ok().and_then(|p| pose_axes(camera, p)) {
             // z first, x last: x, the axis most often read, stays on top.
             for (axis, colour) in [(2, Z_AXIS), (1, Y_AXIS), (0, X_AXIS)] {
                 overlay.segments.push(Segment {
@@ -288,7 +280,10 @@ pub fn overlay_of(response: &ImageResponse, camera: &Camera, label_height_px: f6
                 });
             }
         }
-        overlay.labels.push(label_for(marker, label_height_px));
+        let payload = marker.code.candidate.text.as_deref();
+        overlay
+            .labels
+            .push(label_for(&corners, payload, label_height_px));
         overlay.corner_marks_px.extend(corners);
     }
     overlay
@@ -303,18 +298,10 @@ mod tests {
         Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("a camera")
     }
 
-    fn identity() -> [[f64; 3]; 3] {
-        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
-    }
-
     #[test]
     fn a_frontal_pose_projects_its_axes_right_down_and_onto_the_centre() {
-        let centre = Vec3Mm {
-            x: 0.0,
-            y: 0.0,
-            z: 500.0,
-        };
-        let axes = project_axes(&camera(), &centre, &identity(), 50.0).expect("in front");
+        let centre = Vector3::new(0.0, 0.0, 500.0);
+        let axes = project_axes(&camera(), &centre, &Matrix3::identity(), 50.0).expect("in front");
         assert_eq!(axes.origin_px, [639.5, 359.5]);
         assert_eq!(
             axes.ends_px[0],
@@ -328,19 +315,21 @@ mod tests {
 
     #[test]
     fn a_products_box_and_grasps_are_drawn_coloured_by_graspable() {
-        use crate::api::frames::FramePoseDto;
-        use crate::api::pick::{GraspDto, GraspKindDto};
-        use crate::api::response::RotationDto;
-        let pose = |x: f64, z: f64, r: nalgebra::Rotation3<f64>| FramePoseDto {
-            position_mm: Vec3Mm { x, y: 0.0, z },
-            rotation: RotationDto::from_rotation(&r),
+        use qrpose_site::objects::GraspKind;
+        use qrpose_site::pick::GraspPlan;
+        use qrpose_site::transform::{PoseWithCovariance, Rigid};
+        let pose = |x: f64, z: f64| PoseWithCovariance {
+            pose: Rigid {
+                rotation: nalgebra::Rotation3::identity(),
+                translation_mm: Vector3::new(x, 0.0, z),
+            },
             covariance: None,
         };
-        let grasp = |graspable: bool, x: f64| GraspDto {
+        // The tool approaches along +z, into the scene.
+        let grasp = |graspable: bool, x: f64| GraspPlan {
             name: "g".to_owned(),
-            kind: GraspKindDto::Suction,
-            // The tool approaches along +z, into the scene.
-            pose: pose(x, 450.0, nalgebra::Rotation3::identity()),
+            kind: GraspKind::Suction,
+            pose: pose(x, 450.0),
             pose_in_robot: None,
             pre_grasp_in_robot: None,
             width_mm: None,
@@ -348,10 +337,10 @@ mod tests {
             graspable,
             reasons: vec![],
         };
-        let object = ObjectDto {
+        let object = ObjectPlan {
             rule: "prefix:SKU-".to_owned(),
-            box_mm: [200.0, 100.0, 100.0],
-            pose: pose(0.0, 500.0, nalgebra::Rotation3::identity()),
+            box_mm: Vector3::new(200.0, 100.0, 100.0),
+            pose: pose(0.0, 500.0),
             pose_in_robot: None,
             grasps: vec![grasp(true, -50.0), grasp(false, 50.0)],
         };
@@ -377,12 +366,8 @@ mod tests {
 
     #[test]
     fn axes_behind_the_camera_are_not_drawn() {
-        let centre = Vec3Mm {
-            x: 0.0,
-            y: 0.0,
-            z: 10.0,
-        };
-        let flipped = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]];
+        let centre = Vector3::new(0.0, 0.0, 10.0);
+        let flipped = Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, -1.0));
         assert!(project_axes(&camera(), &centre, &flipped, 50.0).is_none());
     }
 

@@ -8,10 +8,10 @@ use clap::Args;
 use qrpose::annotate::{OutputFormat, annotated_image};
 use qrpose::api::{
     estimate_corners,
-    image::{ImageQuery, ImageResponse, respond},
+    image::{ImageQuery, answer},
     problem::{Problem, parse_json},
 };
-use qrpose::app::{ImageLimits, ImageSetup, Site};
+use qrpose::app::{ImageAnswer, ImageLimits, ImageSetup, Site};
 use qrpose::detect::cancel::CancelFlag;
 use qrpose::geometry::camera::Camera;
 use std::io::{Read, Write};
@@ -152,10 +152,10 @@ fn run_image(path: &PathBuf, args: &EstimateArgs) -> ExitCode {
         Ok(setup) => setup,
         Err(problem) => return report_problem(&problem),
     };
-    match respond(&setup, &bytes, CancelFlag::new()) {
-        Ok(response) => {
+    match answer(&setup, &bytes, CancelFlag::new()) {
+        Ok((answer, response)) => {
             if let Some(out) = &args.annotate
-                && let Err(code) = write_annotated(&bytes, &response, &setup.pose.camera, out)
+                && let Err(code) = write_annotated(&bytes, &answer, &setup.pose.camera, out)
             {
                 return code;
             }
@@ -165,16 +165,16 @@ fn run_image(path: &PathBuf, args: &EstimateArgs) -> ExitCode {
     }
 }
 
-/// Writes the annotated photo of `--annotate`: the poses of `response`, computed with
+/// Writes the annotated photo of `--annotate`: the poses of `answer`, computed with
 /// `camera`, drawn on the photo `bytes`.
 fn write_annotated(
     bytes: &[u8],
-    response: &ImageResponse,
+    answer: &ImageAnswer,
     camera: &Camera,
     out: &Path,
 ) -> Result<(), ExitCode> {
     let format = OutputFormat::from_file_name(out);
-    let image = annotated_image(bytes, response, camera, format).map_err(|e| {
+    let image = annotated_image(bytes, answer, camera, format).map_err(|e| {
         eprintln!("qrpose: cannot annotate {}: {e}", out.display());
         ExitCode::FAILURE
     })?;

@@ -222,7 +222,7 @@ fn a_products_box_and_grasp_axes_are_drawn_where_the_server_draws_them_and_its_g
 
     // The strokes: the server's overlay of the same answer, through the site's camera.
     let camera = Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("a camera");
-    let expected = object_segments(&camera, object);
+    let expected = object_segments(&camera, &plan_of(object));
     let drawn = browser.run(
         "return JSON.parse(document.getElementById('overlay').dataset.axes)[0].object;",
         &[],
@@ -329,4 +329,49 @@ fn a_products_box_and_grasp_axes_are_drawn_where_the_server_draws_them_and_its_g
         not_graspable.reasons
     );
     assert_eq!(severe(&browser.log()), Vec::<&(String, String)>::new());
+}
+
+/// A pose of the answer's JSON as the site crate's.
+fn rigid_of(
+    pose: &qrpose::api::frames::FramePoseDto,
+) -> qrpose_site::transform::PoseWithCovariance {
+    let m = pose.rotation.matrix;
+    qrpose_site::transform::PoseWithCovariance {
+        pose: qrpose_site::transform::Rigid {
+            rotation: nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_fn(
+                |i, j| m[i][j],
+            )),
+            translation_mm: nalgebra::Vector3::new(
+                pose.position_mm.x,
+                pose.position_mm.y,
+                pose.position_mm.z,
+            ),
+        },
+        covariance: None,
+    }
+}
+
+/// The product of the answer's JSON as the plan the server's overlay draws.
+fn plan_of(object: &qrpose::api::pick::ObjectDto) -> qrpose_site::pick::ObjectPlan {
+    qrpose_site::pick::ObjectPlan {
+        rule: object.rule.clone(),
+        box_mm: nalgebra::Vector3::from(object.box_mm),
+        pose: rigid_of(&object.pose),
+        pose_in_robot: None,
+        grasps: object
+            .grasps
+            .iter()
+            .map(|g| qrpose_site::pick::GraspPlan {
+                name: g.name.clone(),
+                kind: qrpose_site::objects::GraspKind::Suction,
+                pose: rigid_of(&g.pose),
+                pose_in_robot: None,
+                pre_grasp_in_robot: None,
+                width_mm: g.width_mm,
+                within_tolerance_probability: g.within_tolerance_probability,
+                graspable: g.graspable,
+                reasons: Vec::new(),
+            })
+            .collect(),
+    }
 }

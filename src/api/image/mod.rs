@@ -306,9 +306,23 @@ pub fn respond(
     bytes: &[u8],
     cancel: CancelFlag,
 ) -> Result<ImageResponse, Problem> {
+    answer(setup, bytes, cancel).map(|(_, response)| response)
+}
+
+/// [`respond`] with the application's answer the response was made from (what the
+/// annotated image draws).
+///
+/// # Errors
+/// As [`respond`].
+pub fn answer(
+    setup: &ImageSetup,
+    bytes: &[u8],
+    cancel: CancelFlag,
+) -> Result<(app::ImageAnswer, ImageResponse), Problem> {
     let answer =
         app::estimate_image(setup, bytes, cancel).map_err(|e| problem_from_image_error(&e))?;
-    Ok(ImageResponse::from_answer(&answer, setup))
+    let response = ImageResponse::from_answer(&answer, setup);
+    Ok((answer, response))
 }
 
 /// Validates `request` against `site`, then [`respond`] (never cancelled): the image path

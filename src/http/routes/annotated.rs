@@ -8,7 +8,7 @@
 //! so it weighs twice the plain endpoint's pixels.
 
 use crate::annotate::{CodecError, OutputFormat, annotated_image};
-use crate::api::image::{ImageQuery, ImageResponse, respond};
+use crate::api::image::{ImageQuery, ImageResponse, answer};
 use crate::api::problem::{ErrorCode, Problem};
 use crate::app::CancelFlag;
 use crate::app::ImageLimits;
@@ -82,10 +82,10 @@ fn annotate_job(
     cancel: CancelFlag,
 ) -> Result<Annotated, ApiError> {
     let setup = input.setup(limits, site)?;
-    let response = respond(&setup, input.image(), cancel)?;
+    let (answer, response) = answer(&setup, input.image(), cancel)?;
     let camera = &setup.pose.camera;
     let image =
-        annotated_image(input.image(), &response, camera, format).map_err(|e| refusal_of(&e))?;
+        annotated_image(input.image(), &answer, camera, format).map_err(|e| refusal_of(&e))?;
     let json = serde_json::to_vec(&response).map_err(ApiError::internal)?;
     Ok(Annotated {
         image,
