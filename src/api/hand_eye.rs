@@ -11,11 +11,11 @@ use super::refusal::problem_from_hand_eye_error;
 use super::request::{CornersUnit, MarkerDto};
 use super::robot::{ParentedPoseDto, RobotPoseDto};
 use crate::app::{
-    HandEyeAnswer, HandEyeRequestSetup, ImageLimits, Site, TargetSize, calibrate_hand_eye_photos,
+    HandEyeAnswer, HandEyeRequestSetup, ImageLimits, Site, Sizing, calibrate_hand_eye_photos,
 };
 use crate::detect::CancelFlag;
-use nalgebra::{Isometry3, Rotation3, Vector3};
 use qrpose_calib::handeye::{FlangeNoise, HandEyeSetup, HandEyeWarning};
+use qrpose_site::SizeSource;
 use qrpose_site::transform::Rigid;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -116,9 +116,12 @@ impl HandEyeRequest {
         site: Option<&Arc<Site>>,
     ) -> Result<HandEyeRequestSetup, Problem> {
         let camera = resolve_camera(&self.camera, CornersUnit::Px, site.map(Arc::as_ref))?.camera;
-        let size = match (&self.marker, site) {
-            (Some(marker), _) => TargetSize::Given(marker.to_marker()?),
-            (None, Some(site)) => TargetSize::BySite(Arc::clone(site)),
+        let sizing = match (&self.marker, site) {
+            (Some(marker), _) => Sizing::Fixed {
+                marker: marker.to_marker()?,
+                source: SizeSource::Request,
+            },
+            (None, Some(_)) => Sizing::BySite,
             (None, None) => {
                 return Err(Problem::new(
                     ErrorCode::UnknownMarkerSize,
@@ -141,7 +144,8 @@ impl HandEyeRequest {
         Ok(HandEyeRequestSetup {
             setup: self.setup.into(),
             camera,
-            size,
+            sizing,
+            site: site.cloned(),
             flange_poses,
             flange_noise,
             decode: limits.decode,
@@ -244,14 +248,6 @@ pub struct HandEyeResponse {
     pub timing_ms: CalibrationTimingDto,
 }
 
-/// An isometry as the site's rigid transform.
-fn rigid(pose: &Isometry3<f64>) -> Rigid {
-    Rigid {
-        rotation: Rotation3::from(pose.rotation),
-        translation_mm: Vector3::from(pose.translation.vector),
-    }
-}
-
 impl From<&HandEyeAnswer> for HandEyeResponse {
     fn from(answer: &HandEyeAnswer) -> Self {
         let c = &answer.calibration;
@@ -279,8 +275,8 @@ impl From<&HandEyeAnswer> for HandEyeResponse {
                 HandEyeSetup::EyeInHand => HandEyeSetupDto::EyeInHand,
                 HandEyeSetup::EyeToHand => HandEyeSetupDto::EyeToHand,
             },
-            camera_pose: ParentedPoseDto::new(setup.camera_parent(), &rigid(&c.camera_pose)),
-            target_pose: ParentedPoseDto::new(setup.target_parent(), &rigid(&c.target_pose)),
+            camera_pose: ParentedPoseDto::new(setup.camera_parent(), &Rigid::from(&c.camera_pose)),
+            target_pose: ParentedPoseDto::new(setup.target_parent(), &Rigid::from(&c.target_pose)),
             std: HandEyeStdDto {
                 rotation_deg: c.std_rotation_deg(),
                 translation_mm: c.std_translation_mm,

@@ -9,7 +9,7 @@
 //! robust fit of the mount, the target and every flange pose as a noisy measurement.
 
 use super::calibrate::{PhotoReport, image_size, ms_since, photo_points};
-use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use super::setup::{SizeResolver, Sizing};
 use qrpose_calib::handeye::{
     FlangeNoise, HandEyeCalibration, HandEyeError, HandEyeOptions, HandEyeSetup, HandEyeView,
     MIN_HAND_EYE_VIEWS, calibrate_hand_eye,
@@ -19,6 +19,7 @@ use qrpose_core::geometry::camera::Camera;
 use qrpose_core::geometry::marker::Marker;
 use qrpose_detect::cancel::CancelFlag;
 use qrpose_detect::decode::{self, DecodeError, DecodeLimits};
+use qrpose_detect::pipeline::MarkerSizes;
 use qrpose_site::Site;
 use qrpose_site::transform::Rigid;
 use std::sync::Arc;
@@ -27,27 +28,6 @@ use std::time::{Duration, Instant};
 /// Most photos one hand-eye calibration takes.
 pub const MAX_HAND_EYE_PHOTOS: usize = 100;
 
-/// How the code of the photos is sized.
-#[derive(Debug, Clone)]
-pub enum TargetSize {
-    /// The request's size.
-    Given(Marker),
-    /// The site's rule for the code's payload.
-    BySite(Arc<Site>),
-}
-
-impl TargetSize {
-    fn marker_for(&self, payload: Option<&str>) -> Option<Marker> {
-        match self {
-            Self::Given(marker) => Some(*marker),
-            Self::BySite(site) => {
-                let lookup = site.sizes().lookup(payload)?;
-                Marker::try_new(lookup.size_mm).ok()
-            }
-        }
-    }
-}
-
 /// A validated hand-eye request.
 #[derive(Debug, Clone)]
 pub struct HandEyeRequestSetup {
@@ -55,8 +35,10 @@ pub struct HandEyeRequestSetup {
     pub setup: HandEyeSetup,
     /// The camera that took the photos (pixel form, with its lens).
     pub camera: Camera,
-    /// The printed code's size.
-    pub size: TargetSize,
+    /// How the code is sized: the request's size, or the site's rule for its payload.
+    pub sizing: Sizing,
+    /// The site the request was validated against (its size rules); `None` without one.
+    pub site: Option<Arc<Site>>,
     /// T_robot←flange when each photo was taken, in the photos' order.
     pub flange_poses: Vec<Rigid>,
     /// How noisy the controller's flange poses are.
@@ -135,14 +117,6 @@ pub enum HandEyeRequestError {
     Cancelled,
 }
 
-/// T_robot←flange as the calibration takes it.
-fn isometry(pose: &Rigid) -> Isometry3<f64> {
-    Isometry3::from_parts(
-        Translation3::from(pose.translation_mm),
-        UnitQuaternion::from_rotation_matrix(&pose.rotation),
-    )
-}
-
 /// Calibrates the camera's mount from `photos` (JPEG, PNG or WebP) and the flange poses of
 /// `setup`; `cancel` stops it between photos.
 ///
@@ -177,6 +151,8 @@ pub fn calibrate_hand_eye_photos<B: AsRef<[u8]>>(
     let mut size: Option<ImageSize> = None;
     let mut reports = Vec::with_capacity(given);
     let mut views = Vec::with_capacity(given);
+    let sizes = SizeResolver::new(setup.sizing, setup.site.as_deref());
+    let size_of = |payload: Option<&str>| sizes.marker_for(payload).map(|(marker, _)| marker);
     let mut marker: Option<Marker> = None;
     for ((index, bytes), flange) in photos.iter().enumerate().zip(&setup.flange_poses) {
         if cancel.is_cancelled() {
@@ -188,11 +164,9 @@ pub fn calibrate_hand_eye_photos<B: AsRef<[u8]>>(
         if this != *size.get_or_insert(this) {
             return Err(HandEyeRequestError::MixedSizes { index });
         }
-        let report = photo_points(&image, index, setup.max_detect, cancel, |payload| {
-            setup.size.marker_for(payload)
-        });
+        let report = photo_points(&image, index, setup.max_detect, cancel, size_of);
         if !report.points.is_empty() {
-            marker = marker.or_else(|| setup.size.marker_for(report.payload.as_deref()));
+            marker = marker.or_else(|| size_of(report.payload.as_deref()));
         }
         views.push(HandEyeView {
             correspondences: report
@@ -202,7 +176,7 @@ pub fn calibrate_hand_eye_photos<B: AsRef<[u8]>>(
                     Correspondence::new(p.marker.0.x, p.marker.0.y, p.pixel_px.u(), p.pixel_px.v())
                 })
                 .collect(),
-            flange_pose: isometry(flange),
+            flange_pose: flange.to_isometry(),
         });
         reports.push(report);
     }
@@ -236,12 +210,17 @@ pub fn calibrate_hand_eye_photos<B: AsRef<[u8]>>(
 mod tests {
     use super::*;
     use qrpose_core::geometry::camera::Camera;
+    use qrpose_site::SizeSource;
 
     fn setup(poses: usize) -> HandEyeRequestSetup {
         HandEyeRequestSetup {
             setup: HandEyeSetup::EyeInHand,
             camera: Camera::from_pixels(1000.0, 1000.0, 639.5, 359.5).expect("a camera"),
-            size: TargetSize::Given(Marker::try_new(120.0).expect("a size")),
+            sizing: Sizing::Fixed {
+                marker: Marker::try_new(120.0).expect("a size"),
+                source: SizeSource::Request,
+            },
+            site: None,
             flange_poses: vec![Rigid::identity(); poses],
             flange_noise: FlangeNoise::default(),
             decode: DecodeLimits::default(),

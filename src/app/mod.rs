@@ -49,7 +49,7 @@ pub use calibrate::{
 pub use corners::{CornersAnswer, CornersError, estimate_corners};
 pub use frames::{InFrames, Localization, SiteFrames};
 pub use hand_eye::{
-    HandEyeAnswer, HandEyeRequestError, HandEyeRequestSetup, MAX_HAND_EYE_PHOTOS, TargetSize,
+    HandEyeAnswer, HandEyeRequestError, HandEyeRequestSetup, MAX_HAND_EYE_PHOTOS,
     calibrate_hand_eye_photos,
 };
 pub use image::{ImageAnswer, ImageError, MarkerAnswer, Timing, estimate_decoded, estimate_image};

@@ -75,10 +75,7 @@ impl Setup {
     /// The marker-size resolver of this setup, for the detector.
     #[must_use]
     pub fn sizes(&self) -> SizeResolver<'_> {
-        SizeResolver {
-            sizing: self.sizing,
-            site: self.site.as_deref(),
-        }
+        SizeResolver::new(self.sizing, self.site.as_deref())
     }
 }
 
@@ -88,6 +85,14 @@ impl Setup {
 pub struct SizeResolver<'a> {
     sizing: Sizing,
     site: Option<&'a Site>,
+}
+
+impl<'a> SizeResolver<'a> {
+    /// The resolver of `sizing` against `site`'s rules.
+    #[must_use]
+    pub fn new(sizing: Sizing, site: Option<&'a Site>) -> Self {
+        Self { sizing, site }
+    }
 }
 
 impl MarkerSizes for SizeResolver<'_> {

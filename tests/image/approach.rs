@@ -8,7 +8,7 @@
 #[path = "../support/pick.rs"]
 mod scene;
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::Vector3;
 use qrpose::api::image::ImageQuery;
 use qrpose::api::stream::TrackQuery;
 use qrpose::app::{FrameIn, ImageLimits, Site, TrackSession};
@@ -22,13 +22,6 @@ use std::sync::Arc;
 const FRAMES: usize = 20;
 /// The frame after which the fused grasp is judged.
 const JUDGED_FRAME: usize = 10;
-
-fn rigid(pose: &Isometry3<f64>) -> Rigid {
-    Rigid {
-        rotation: pose.rotation.to_rotation_matrix(),
-        translation_mm: pose.translation.vector,
-    }
-}
 
 fn median(mut values: Vec<f64>) -> f64 {
     values.sort_by(f64::total_cmp);
@@ -69,7 +62,7 @@ fn approach_errors(
                 bytes: &photo,
                 capture_time_ms: k as f64 * 100.0,
                 prior: None,
-                flange: Some(rigid(flange)),
+                flange: Some(Rigid::from(flange)),
             };
             let answer = session.frame(&input, CancelFlag::new()).expect("a frame");
             let marker = answer.image.markers.first()?;

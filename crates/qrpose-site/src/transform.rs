@@ -21,7 +21,7 @@
 //!
 //! A mount with a standard deviation ([`crate::mount`]) is such an uncertain left factor.
 
-use nalgebra::{Matrix3, Matrix6, Rotation3, Vector3};
+use nalgebra::{Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3};
 use qrpose_core::estimate::PoseEstimate;
 
 /// A rigid transform T_ab: p_a = R·p_b + t, t in mm.
@@ -62,6 +62,23 @@ impl Rigid {
     /// p_a for p_b, mm.
     pub fn transform_point(&self, p_b_mm: &Vector3<f64>) -> Vector3<f64> {
         self.rotation * p_b_mm + self.translation_mm
+    }
+
+    /// The same transform as nalgebra's isometry (what qrpose-calib and qrpose-sim take).
+    pub fn to_isometry(&self) -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::from(self.translation_mm),
+            UnitQuaternion::from_rotation_matrix(&self.rotation),
+        )
+    }
+}
+
+impl From<&Isometry3<f64>> for Rigid {
+    fn from(pose: &Isometry3<f64>) -> Self {
+        Self {
+            rotation: pose.rotation.to_rotation_matrix(),
+            translation_mm: pose.translation.vector,
+        }
     }
 }
 
@@ -257,6 +274,20 @@ mod tests {
             j.set_column(k, &col);
         }
         j
+    }
+
+    #[test]
+    fn an_isometry_round_trip_keeps_the_transform() {
+        let rigid = Rigid {
+            rotation: Rotation3::from_euler_angles(0.3, -1.1, 2.0),
+            translation_mm: Vector3::new(12.5, -300.0, 845.0),
+        };
+        let iso = rigid.to_isometry();
+        let p = Vector3::new(1.0, 2.0, 3.0);
+        assert!((iso.transform_point(&p.into()).coords - rigid.transform_point(&p)).norm() < 1e-12);
+        let back = Rigid::from(&iso);
+        assert!((back.rotation.matrix() - rigid.rotation.matrix()).norm() < 1e-12);
+        assert_eq!(back.translation_mm, rigid.translation_mm);
     }
 
     #[test]
