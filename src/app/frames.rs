@@ -40,6 +40,10 @@ impl SiteFrames<'_> {
     /// site allows.
     #[must_use]
     pub fn of(&self, estimate: &PoseEstimate, payload: Option<&str>) -> InFrames {
+        if self.site.is_none() && self.camera.is_none() {
+            // No site: nothing to carry (the corners route's common case stays as cheap).
+            return InFrames::default();
+        }
         let in_camera = marker_in_camera(estimate);
         let camera_in_robot = self
             .camera
