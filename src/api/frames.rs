@@ -4,6 +4,7 @@
 //! planar ambiguity (validated into [`crate::app::Prior`]). The math is the application
 //! layer's and the qrpose-site crate's.
 
+use super::alternatives::{Form, Narrowed, Rule};
 use super::problem::{ErrorCode, Problem};
 use super::response::{COVARIANCE_ORDER, CovarianceDto, RotationDto, Vec3Mm};
 use crate::app::{Localization, Prior};
@@ -13,6 +14,7 @@ use qrpose_site::localize::{CHI2_GATE_6DOF, residual_rotation_deg};
 use qrpose_site::prior::RotationPrior;
 use qrpose_site::transform::PoseWithCovariance;
 use serde::{Deserialize, Serialize};
+use serde_json::json;
 use utoipa::ToSchema;
 
 /// Where `marker_size_mm` came from.
@@ -121,6 +123,38 @@ pub struct PriorDto {
     /// Standard deviation of the angle to the expected rotation, degrees, in (0, 180].
     #[schema(example = 15.0, exclusive_minimum = 0, maximum = 180)]
     pub sigma_deg: f64,
+}
+
+/// The prior's forms in the document ([`crate::api::alternatives`]): the code's rotation or
+/// the robot's, neither all zero (a quaternion without a rotation).
+#[must_use]
+pub fn prior_forms() -> Rule {
+    let form = |name, summary, fields: &'static [&'static str; 2]| Form {
+        name,
+        summary,
+        fields,
+        required: fields,
+        narrowed: vec![(
+            fields[0],
+            Narrowed::With(json!({"not": {"items": {"const": 0}}})),
+        )],
+    };
+    Rule::Split {
+        component: "PriorDto",
+        forms: vec![
+            form(
+                "MarkerPrior",
+                "the code's rotation",
+                &["marker_quaternion_wxyz", "sigma_deg"],
+            ),
+            form(
+                "RobotPrior",
+                "the robot's rotation",
+                &["robot_quaternion_wxyz", "sigma_deg"],
+            ),
+        ],
+        only_within: &[],
+    }
 }
 
 /// Largest `sigma_deg` of a prior: beyond half a turn a prior says nothing.

@@ -9,6 +9,7 @@
 //! client can get wrong is refused here as a [`problem::Problem`]. No HTTP framework is
 //! named in this module.
 
+pub mod alternatives;
 pub mod calibrate;
 pub mod camera;
 pub mod context;

@@ -5,6 +5,8 @@
 //! the JSON pointer of the field at fault. Unknown fields are refused rather than ignored, so
 //! that a typo (`max_iteration`) cannot silently fall back to a default.
 
+use super::alternatives::{Form, Narrowed, Rule};
+use super::camera::IMAGE_PLANE;
 pub use super::camera::{CameraDto, DistortionDto};
 use super::context::{missing_marker, resolve_camera, resolve_marker};
 pub use super::frames::PriorDto;
@@ -22,6 +24,7 @@ use crate::geometry::{
 };
 use qrpose_site::Site;
 use serde::{Deserialize, Serialize};
+use serde_json::json;
 use std::sync::Arc;
 use std::time::Instant;
 use utoipa::ToSchema;
@@ -152,6 +155,67 @@ pub struct CornersRequest {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(minimum = 0, maximum = 1, example = 0.95)]
     pub min_grasp_probability: Option<f64>,
+}
+
+/// The fields of a corners request in pixels.
+const PIXEL_CORNERS: &[&str] = &[
+    "corners_px",
+    "corner_order",
+    "camera",
+    "marker",
+    "payload",
+    "solver",
+    "prior",
+    "flange_pose",
+    "min_grasp_probability",
+];
+/// The fields of a corners request in image-plane mm: the same, but for the corners.
+const PLANE_CORNERS: &[&str] = &[
+    "corners_mm",
+    "corner_order",
+    "camera",
+    "marker",
+    "payload",
+    "solver",
+    "prior",
+    "flange_pose",
+    "min_grasp_probability",
+];
+
+/// A corners request's forms in the document ([`crate::api::alternatives`]): corners in
+/// pixels, or in image-plane mm with the image-plane camera; the marker required without a
+/// site.
+#[must_use]
+pub fn corners_forms(site: bool) -> Rule {
+    let (required_px, required_mm): (&'static [&str], &'static [&str]) = if site {
+        (&["corners_px", "camera"], &["corners_mm", "camera"])
+    } else {
+        (
+            &["corners_px", "camera", "marker"],
+            &["corners_mm", "camera", "marker"],
+        )
+    };
+    let image_plane = json!({"$ref": format!("#/components/schemas/{IMAGE_PLANE}")});
+    Rule::Split {
+        component: "CornersRequest",
+        forms: vec![
+            Form {
+                name: "PixelCornersRequest",
+                summary: "corners in pixels",
+                fields: PIXEL_CORNERS,
+                required: required_px,
+                narrowed: vec![],
+            },
+            Form {
+                name: "PlaneCornersRequest",
+                summary: "corners in image-plane mm",
+                fields: PLANE_CORNERS,
+                required: required_mm,
+                narrowed: vec![("camera", Narrowed::To(image_plane))],
+            },
+        ],
+        only_within: &[],
+    }
 }
 
 /// The schema of a corner list: four distinct `[u, v]` pairs of numbers (else
@@ -378,4 +442,14 @@ fn check_arithmetic_range(
         ),
     )
     .with_field(corners_pointer))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn both_corners_forms_share_every_field_but_the_corners() {
+        assert_eq!(PIXEL_CORNERS[1..], PLANE_CORNERS[1..]);
+    }
 }

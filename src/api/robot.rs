@@ -8,6 +8,7 @@
 //! Robots), `euler_zyx_deg` [a, b, c] with R = Rz(a)·Ry(b)·Rx(c) (KUKA A, B, C; Fanuc and
 //! Yaskawa W, P, R sent as [R, P, W]).
 
+use super::alternatives::{Form, Rule};
 use super::problem::{ErrorCode, Problem};
 use super::site::RigidDto;
 use crate::app::Pick;
@@ -42,6 +43,40 @@ pub struct RobotPoseDto {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schema(min_items = 3, max_items = 3)]
     pub euler_zyx_deg: Option<[f64; 3]>,
+}
+
+/// A robot pose's forms in the document ([`crate::api::alternatives`]): the translation and
+/// exactly one rotation form.
+#[must_use]
+pub fn robot_pose_forms() -> Rule {
+    let form = |name, summary, fields: &'static [&'static str; 2]| Form {
+        name,
+        summary,
+        fields,
+        required: fields,
+        narrowed: vec![],
+    };
+    Rule::Split {
+        component: "RobotPoseDto",
+        forms: vec![
+            form(
+                "RobotPoseQuaternion",
+                "quaternion (ABB)",
+                &["translation_mm", "quaternion_wxyz"],
+            ),
+            form(
+                "RobotPoseRotationVector",
+                "rotation vector (Universal Robots)",
+                &["translation_mm", "rotation_vector_rad"],
+            ),
+            form(
+                "RobotPoseEulerZyx",
+                "Z-Y-X Euler angles (KUKA; Fanuc, Yaskawa)",
+                &["translation_mm", "euler_zyx_deg"],
+            ),
+        ],
+        only_within: &[],
+    }
 }
 
 /// The problem of a robot pose at `pointer`.

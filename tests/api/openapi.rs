@@ -226,6 +226,68 @@ async fn a_server_with_a_site_serves_the_site_document() {
 
 /// The documents differ only where a site changes what is valid: without one the camera
 /// has no site-id form and the marker size is required.
+/// A validator of component `name` of the committed document without a site.
+fn validator(name: &str) -> jsonschema::Validator {
+    let mut root: Value = serde_json::from_str(COMMITTED).expect("JSON");
+    root["$ref"] = serde_json::json!(format!("#/components/schemas/{name}"));
+    jsonschema::draft202012::new(&root).expect("a valid schema")
+}
+
+#[test]
+fn the_forms_accept_what_the_server_accepts_and_refuse_the_rest() {
+    use serde_json::json;
+    let camera = json!({"fx_px": 1000, "fy_px": 1000, "cx_px": 640, "cy_px": 360});
+    let corners = validator("CornersRequest");
+    let square = json!([[0, 0], [10, 0], [10, 10], [0, 10]]);
+    let request = |corners_px: Value| json!({"corners_px": corners_px, "marker": {"size_mm": 50}, "camera": camera});
+    assert!(corners.is_valid(&request(square.clone())));
+    let mut picking = request(square);
+    picking["flange_pose"] =
+        json!({"translation_mm": [0, 0, 500], "quaternion_wxyz": [1, 0, 0, 0]});
+    picking["min_grasp_probability"] = json!(0.9);
+    assert!(
+        corners.is_valid(&picking),
+        "every field of the request is in its forms"
+    );
+    for bad in [
+        json!([[0, 0], [10, 0], [10, 10], [0, 10, 1]]),
+        json!([[0, 0], [10, 0], [10, 10], [0]]),
+        json!([[0, 0], [10, 0], [10, 10], [0, 0]]),
+        json!([[0, 0], [10, 0], [10, 10]]),
+    ] {
+        assert!(!corners.is_valid(&request(bad.clone())), "{bad}");
+    }
+    let image = validator("ImageRequest");
+    for (points, solver, valid) in [
+        ("finders", json!({}), true),
+        ("finders", json!({"method": "reprojection"}), true),
+        ("finders", json!({"method": "paper"}), false),
+        ("finders", json!({"method": "depth-newton"}), false),
+        ("corners", json!({"method": "paper"}), true),
+    ] {
+        let r = json!({"camera": camera, "marker": {"size_mm": 50}, "points": points,
+                       "solver": solver});
+        assert_eq!(image.is_valid(&r), valid, "{r}");
+    }
+    let lens = validator("DistortionDto");
+    for (distortion, valid) in [
+        (json!({"k1": 0.1, "k4": 0}), true),
+        (json!({"k1": 0.1, "k4": 0.5}), false),
+        (json!({"model": "equidistant", "k4": 0.5, "p1": 0.0}), true),
+        (json!({"model": "equidistant", "p1": 0.1}), false),
+        (json!({"model": "rational_polynomial", "k6": 0.5}), true),
+    ] {
+        assert_eq!(lens.is_valid(&distortion), valid, "{distortion}");
+    }
+    let prior = validator("PriorDto");
+    assert!(prior.is_valid(&json!({"marker_quaternion_wxyz": [1, 0, 0, 0], "sigma_deg": 10})));
+    assert!(!prior.is_valid(&json!({"marker_quaternion_wxyz": [0, 0, 0, 0], "sigma_deg": 10})));
+    assert!(
+        !prior.is_valid(&json!({"marker_quaternion_wxyz": [1, 0, 0, 0],
+        "robot_quaternion_wxyz": [1, 0, 0, 0], "sigma_deg": 10}))
+    );
+}
+
 #[test]
 fn the_site_changes_the_camera_forms_and_the_marker_s_required_ness() {
     let without: Value = serde_json::from_str(COMMITTED).expect("JSON");

@@ -2,6 +2,10 @@
 //! distortion, and its validation into a core [`Camera`] (`docs/conventions.md`, Image-plane
 //! millimetres and camera forms).
 
+mod forms;
+
+pub use forms::{IMAGE_PLANE, camera_forms, distortion_forms};
+
 use super::problem::{ErrorCode, Problem};
 use super::refusal::problem_from_camera_error;
 use super::request::CornersUnit;

@@ -33,11 +33,12 @@ pub use response::{
     ImageResponse, ImageSizeDto, ImageWarningDto, MarkerResultDto, PassDto, TimingDto,
 };
 
+use super::alternatives::Rule;
 use super::context::{missing_marker, resolve_camera};
 use super::frames::PriorDto;
 use super::problem::{ErrorCode, Problem};
 use super::refusal::problem_from_image_error;
-use super::request::{CameraDto, CornersUnit, MarkerDto, SolverDto};
+use super::request::{CameraDto, CornersUnit, MarkerDto, MethodDto, SolverDto};
 use super::robot::{RobotPoseDto, pick_of};
 use crate::app::{self, DetectSetup, ImageSetup, Setup, Sizing};
 use crate::detect::{Backend, DetectorChoice, Effort, cancel::CancelFlag, pipeline::Points};
@@ -129,6 +130,30 @@ impl From<Points> for PointsDto {
             Points::Corners => PointsDto::Corners,
             Points::Finders => PointsDto::Finders,
         }
+    }
+}
+
+/// The image request's cross-field rule in the document ([`crate::api::alternatives`]):
+/// `points = finders` needs `method = reprojection` (else `points_need_reprojection`; an
+/// omitted method is `reprojection`), so the request is not one with `points: finders` and
+/// another `solver.method`.
+#[must_use]
+pub fn finders_need_reprojection() -> Rule {
+    use clap::ValueEnum;
+    let others: Vec<serde_json::Value> = MethodDto::value_variants()
+        .iter()
+        .filter(|m| Method::from(**m) != Method::Reprojection)
+        .map(|m| serde_json::json!(m))
+        .collect();
+    Rule::Not {
+        component: "ImageRequest",
+        schema: serde_json::json!({
+            "required": ["points", "solver"],
+            "properties": {
+                "points": {"const": PointsDto::Finders},
+                "solver": {"required": ["method"], "properties": {"method": {"enum": others}}},
+            },
+        }),
     }
 }
 

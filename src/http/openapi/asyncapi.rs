@@ -5,7 +5,7 @@
 //! for the OpenAPI document, so the two documents cannot disagree; a test validates the
 //! answers a real session sends against them.
 
-use super::requests::{Served, write_alternatives};
+use super::alternatives::{Served, write_alternatives};
 use crate::api::image::ImageQuery;
 use crate::api::problem::Problem;
 use crate::api::stream::{FrameMetaDto, FrameProblem, StreamAnswer, TrackQuery};

@@ -3,8 +3,8 @@
 //!
 //! The document says what the server accepts, exactly: ranges, defaults and required-ness
 //! come from the DTOs' own attributes; the request bodies whose valid forms are alternatives
-//! are written as unions of closed schemas ([`variants`], [`requests`]); the image routes'
-//! query parameters are flat and optional ([`query`]). Where the server's configuration
+//! are unions of closed schemas, from the forms the wire types declare ([`alternatives`]);
+//! the image routes' query parameters are flat and optional ([`query`]). Where the server's configuration
 //! changes what is valid ([`Served`]: a site loaded or not, the zxing-cpp detector built in
 //! or not), the served document says so.
 //!
@@ -15,15 +15,14 @@
 //! `GET /openapi.json` is served from here, rendered once per configuration: the document is
 //! made from the routes, so the route that serves it lives with it rather than among them.
 
+mod alternatives;
 pub mod asyncapi;
 mod forms;
 mod problems;
 mod query;
-mod requests;
 mod security;
-mod variants;
 
-pub use requests::Served;
+pub use alternatives::Served;
 
 use super::error::ApiError;
 use super::routes::{annotated, calibrate, corners, hand_eye, health, image, metrics, page, site};
@@ -132,7 +131,7 @@ pub fn openapi_json(served: Served) -> Result<String, serde_json::Error> {
     let mut doc = serde_json::to_value(openapi())?;
     forms::document_forms(&mut doc);
     problems::write_problem_codes(&mut doc);
-    requests::write_alternatives(&mut doc, served);
+    alternatives::write_alternatives(&mut doc, served);
     query::parameters_as_served(&mut doc, served);
     if served.auth {
         security::declare_security(&mut doc);

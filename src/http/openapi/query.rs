@@ -8,7 +8,7 @@
 //! marker size, is stated in the operation's description, and the flat parameters keep
 //! generated clients simple (one argument each).
 
-use super::requests::Served;
+use super::alternatives::Served;
 use serde_json::Value;
 
 /// The parameter of the site camera's id.
