@@ -13,7 +13,7 @@
 # holds a valid token) and without one (its document asks for no token). Each serves its
 # own document and gets two bounded runs with a fixed seed, an eighth of SECONDS each:
 #   1. positive data (valid by the document) for every operation. A valid request is refused
-#      only for what no schema can say (the residue: src/http/openapi/requests.rs); the
+#      only for what no schema can say (the residue: docs/service.md, Fuzzing); the
 #      hooks (scripts/schemathesis_hooks.py) map generated requests into the valid subset
 #      for each rule of it, in this run only, each mapping documented there with its rule.
 #   2. negative data (invalid by the document), sent as generated.

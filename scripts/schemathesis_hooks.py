@@ -12,7 +12,7 @@ positive run they are always photos (rule: bytes that are not a JPEG or PNG are
 
 The positive run (QRPOSE_ST_MODE=positive) checks `positive_data_acceptance`: every request
 valid by the document must be answered 2xx. The document is as strict as the server except
-for the residue that no schema can state (src/http/openapi/requests.rs, docs/service.md,
+for the residue that no schema can state (docs/service.md,
 Fuzzing). Each mapping below takes a generated request into the valid subset for one rule of
 that residue, and nothing else; the negative run (QRPOSE_ST_MODE=negative) maps nothing and
 sends what it generates. A mapped request must still be valid by the document: the hooks

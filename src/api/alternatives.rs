@@ -71,6 +71,8 @@ pub enum Rule {
         /// What it may not be.
         schema: Value,
     },
+    /// No operation takes this query parameter.
+    NoParameter(&'static str),
     /// The enumeration of the component lacks this value.
     Without {
         /// The enumeration.
@@ -93,6 +95,7 @@ pub fn rules(site: bool, zxing_cpp: bool) -> Vec<Rule> {
         finders_need_reprojection(),
     ];
     if !site {
+        rules.push(Rule::NoParameter("camera_id"));
         for component in ["ImageRequest", "HandEyeRequest"] {
             rules.push(Rule::Require {
                 component,

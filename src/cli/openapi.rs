@@ -28,7 +28,7 @@ pub fn run_asyncapi(args: &OpenapiArgs) -> ExitCode {
         zxing_cpp: Backend::ZxingCpp.is_built(),
         auth: args.auth,
     };
-    match qrpose::http::openapi::asyncapi::asyncapi_json(served) {
+    match qrpose::http::stream::asyncapi::asyncapi_json(served) {
         Ok(json) => {
             print!("{json}");
             ExitCode::SUCCESS

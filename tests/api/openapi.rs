@@ -361,8 +361,8 @@ async fn the_asyncapi_document_is_committed_printed_and_served() {
     // Arrange
     let app = spawn_app().await;
     let current =
-        qrpose::http::openapi::asyncapi::asyncapi_json(committed(false)).expect("a document");
-    let this_build = qrpose::http::openapi::asyncapi::asyncapi_json(Served {
+        qrpose::http::stream::asyncapi::asyncapi_json(committed(false)).expect("a document");
+    let this_build = qrpose::http::stream::asyncapi::asyncapi_json(Served {
         site: false,
         zxing_cpp: Backend::ZxingCpp.is_built(),
         auth: false,

@@ -3,29 +3,8 @@
 //! a split object becomes a `oneOf` of closed components made of its derived fields, a rule
 //! becomes the keyword it names.
 //!
-//! What stays outside any schema (the residue, `docs/service.md`, Fuzzing), each refused
-//! with its own code although the request is valid by the document:
-//! - a quadrilateral that is not convex or not clockwise, or whose corners nearly coincide
-//!   or nearly lie on a line (`non_convex_corners`, `mirrored_corners`,
-//!   `duplicate_corners`, `collinear_corners`: relative tolerances no schema can state);
-//! - corners no pose fits: the paper's iteration settles only on axis and square on, and
-//!   elsewhere can drift until its corners are collinear (`no_solution`); a corner that
-//!   cannot be undistorted with the given coefficients (`undistortion_failed`);
-//! - magnitudes beyond double precision: corners that overflow once divided by the pixel
-//!   size, a quaternion too small to normalise (`numerically_degenerate`, `invalid_prior`;
-//!   a robot pose's quaternion whose norm is off 1 by more than 1e-3, `invalid_robot_pose`);
-//! - bytes that are not a JPEG or PNG (`undecodable_image`); photos for `POST /v1/calibrate`
-//!   that do not show one code, decoded in at least three of them, at one size
-//!   (`no_code_found`, `too_few_views`, `mixed_image_sizes`);
-//! - a camera id or payload the loaded site does not know (`unknown_camera`,
-//!   `unknown_marker_size`);
-//! - what OpenAPI cannot tie across the query and the body: with a raw image body the camera
-//!   (in one of its forms) and, without a site, `marker_size_mm` are required; and
-//!   `points = finders` with another method when one of them comes from the query.
-//!
-//! And one place where the server accepts more than the document: a multipart `request`
-//! part without the camera or marker when the query parameters give them (the document
-//! requires them in the part).
+//! What no schema can say (the residue) is listed in `docs/service.md`, Fuzzing: each part
+//! of it is refused with its own code although the request is valid by the document.
 
 use crate::api::alternatives::{Form, Narrowed, Rule, rules};
 use serde_json::{Map, Value, json};
@@ -42,16 +21,32 @@ pub struct Served {
     pub auth: bool,
 }
 
-/// Applies every rule of the wire model to `doc`'s schemas, as `served`.
+/// Applies every rule of the wire model to `doc`, as `served`.
 pub fn write_alternatives(doc: &mut Value, served: Served) {
-    let Some(schemas) = doc
-        .pointer_mut("/components/schemas")
-        .and_then(Value::as_object_mut)
-    else {
+    for rule in rules(served.site, served.zxing_cpp) {
+        if let Rule::NoParameter(name) = rule {
+            without_parameter(doc, name);
+        } else if let Some(schemas) = doc
+            .pointer_mut("/components/schemas")
+            .and_then(Value::as_object_mut)
+        {
+            apply(schemas, rule);
+        }
+    }
+}
+
+/// Leaves query parameter `name` out of every operation. Every parameter is optional in the
+/// document: the image routes take their request either as query parameters (a raw image
+/// body) or in the multipart `request` part, and OpenAPI cannot tie parameters to a media
+/// type; the raw form's own rule is stated in the operation's description.
+fn without_parameter(doc: &mut Value, name: &str) {
+    let Some(Value::Object(paths)) = doc.get_mut("paths") else {
         return;
     };
-    for rule in rules(served.site, served.zxing_cpp) {
-        apply(schemas, rule);
+    for item in paths.values_mut() {
+        if let Some(Value::Array(parameters)) = item.pointer_mut("/post/parameters") {
+            parameters.retain(|p| p["name"] != name);
+        }
     }
 }
 
@@ -73,6 +68,7 @@ fn apply(schemas: &mut Map<String, Value>, rule: Rule) {
                 object["not"] = schema;
             }
         }
+        Rule::NoParameter(_) => {}
         Rule::Without { component, value } => {
             if let Some(Value::Array(values)) =
                 schemas.get_mut(component).and_then(|s| s.get_mut("enum"))
@@ -325,6 +321,12 @@ mod tests {
         assert_eq!(
             s["Thing"]["properties"]["b"],
             json!({"$ref": "#/components/schemas/B", "description": "B."})
+        );
+        let mut doc = json!({"paths": {"/x": {"post": {"parameters": [{"name": "camera_id"}, {"name": "fx_px"}]}}}});
+        without_parameter(&mut doc, "camera_id");
+        assert_eq!(
+            doc["paths"]["/x"]["post"]["parameters"],
+            json!([{"name": "fx_px"}])
         );
         s.insert("E".to_owned(), json!({"enum": ["x", "y"]}));
         apply(

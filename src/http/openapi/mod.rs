@@ -4,7 +4,7 @@
 //! The document says what the server accepts, exactly: ranges, defaults and required-ness
 //! come from the DTOs' own attributes; the request bodies whose valid forms are alternatives
 //! are unions of closed schemas, from the forms the wire types declare ([`alternatives`]);
-//! the image routes' query parameters are flat and optional ([`query`]). Where the server's configuration
+//! the image routes' query parameters are flat and optional. Where the server's configuration
 //! changes what is valid ([`Served`]: a site loaded or not, the zxing-cpp detector built in
 //! or not), the served document says so.
 //!
@@ -16,17 +16,16 @@
 //! made from the routes, so the route that serves it lives with it rather than among them.
 
 mod alternatives;
-pub mod asyncapi;
 mod forms;
 mod problems;
-mod query;
-mod security;
+pub(crate) mod security;
 
-pub use alternatives::Served;
+pub use alternatives::{Served, write_alternatives};
 
 use super::error::ApiError;
 use super::routes::{annotated, calibrate, corners, hand_eye, health, image, metrics, page, site};
 use super::state::AppState;
+use super::stream::asyncapi;
 use crate::app::Backend;
 use axum::body::Bytes;
 use axum::extract::State;
@@ -39,14 +38,22 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 /// Where the OpenAPI document is served.
 pub const OPENAPI_PATH: &str = "/openapi.json";
 
-/// The document of `served`, rendered on first use.
-fn rendered(served: Served) -> &'static Result<Bytes, String> {
-    static DOCUMENTS: [OnceLock<Result<Bytes, String>>; 8] = [const { OnceLock::new() }; 8];
-    DOCUMENTS[served.slot()].get_or_init(|| {
-        openapi_json(served)
-            .map(Bytes::from)
-            .map_err(|e| e.to_string())
-    })
+/// One document per configuration, rendered on first use.
+pub(crate) type Rendered = [OnceLock<Result<Bytes, String>>; 8];
+
+/// The document `render` makes for `served`, from `cache` once rendered.
+pub(crate) fn rendered(
+    cache: &'static Rendered,
+    served: Served,
+    render: fn(Served) -> Result<String, serde_json::Error>,
+) -> &'static Result<Bytes, String> {
+    cache[served.slot()].get_or_init(|| render(served).map(Bytes::from).map_err(|e| e.to_string()))
+}
+
+/// The OpenAPI document of `served`, rendered on first use.
+fn rendered_openapi(served: Served) -> &'static Result<Bytes, String> {
+    static DOCUMENTS: Rendered = [const { OnceLock::new() }; 8];
+    rendered(&DOCUMENTS, served, openapi_json)
 }
 
 /// The commands that regenerate the committed documents.
@@ -111,7 +118,7 @@ pub fn api_router() -> OpenApiRouter<AppState> {
         .routes(routes!(site::reload_site))
         .routes(routes!(metrics::metrics))
         .routes(routes!(serve_openapi_json))
-        .routes(routes!(serve_asyncapi_json))
+        .routes(routes!(asyncapi::serve_asyncapi_json))
 }
 
 /// The OpenAPI document as utoipa derives it from the routes and the DTOs; what is served
@@ -131,8 +138,7 @@ pub fn openapi_json(served: Served) -> Result<String, serde_json::Error> {
     let mut doc = serde_json::to_value(openapi())?;
     forms::document_forms(&mut doc);
     problems::write_problem_codes(&mut doc);
-    alternatives::write_alternatives(&mut doc, served);
-    query::parameters_as_served(&mut doc, served);
+    write_alternatives(&mut doc, served);
     if served.auth {
         security::declare_security(&mut doc);
     }
@@ -152,7 +158,7 @@ pub fn openapi_json(served: Served) -> Result<String, serde_json::Error> {
 pub async fn serve_openapi_json(
     State(state): State<AppState>,
 ) -> Result<impl IntoResponse, ApiError> {
-    let json = rendered(Served::by(&state))
+    let json = rendered_openapi(Served::by(&state))
         .as_ref()
         .map_err(ApiError::internal)?;
     Ok(([(header::CONTENT_TYPE, "application/json")], json.clone()))
@@ -172,40 +178,11 @@ mod tests {
                         zxing_cpp,
                         auth,
                     };
-                    let cached = rendered(served).as_ref().expect("renders");
+                    let cached = rendered_openapi(served).as_ref().expect("renders");
                     let fresh = openapi_json(served).expect("renders");
                     assert_eq!(cached.as_ref(), fresh.as_bytes(), "{served:?}");
                 }
             }
         }
     }
-}
-
-/// The stream's messages, rendered once per configuration.
-fn rendered_asyncapi(served: Served) -> &'static Result<Bytes, String> {
-    static DOCUMENTS: [OnceLock<Result<Bytes, String>>; 8] = [const { OnceLock::new() }; 8];
-    DOCUMENTS[served.slot()].get_or_init(|| {
-        asyncapi::asyncapi_json(served)
-            .map(Bytes::from)
-            .map_err(|e| e.to_string())
-    })
-}
-
-/// The AsyncAPI 3 document of `GET /v1/stream`'s messages, as this server is configured
-/// (identical to `qrpose asyncapi`, or `qrpose asyncapi --site` when a site is loaded).
-#[utoipa::path(
-    get,
-    path = "/asyncapi.json",
-    tag = "operations",
-    operation_id = "asyncapi_json",
-    responses((status = 200, description = "The AsyncAPI 3.0 document of the stream.",
-        body = Object, content_type = "application/json"))
-)]
-pub async fn serve_asyncapi_json(
-    State(state): State<AppState>,
-) -> Result<impl IntoResponse, ApiError> {
-    let json = rendered_asyncapi(Served::by(&state))
-        .as_ref()
-        .map_err(ApiError::internal)?;
-    Ok(([(header::CONTENT_TYPE, "application/json")], json.clone()))
 }

@@ -40,35 +40,14 @@ mod tests {
 
     #[test]
     fn every_operation_of_the_list_has_its_422_codes_in_the_document() {
-        let doc: Value =
-            serde_json::from_str(&openapi_json(Served::default()).expect("a document"))
-                .expect("JSON");
-        let mut doc = doc;
+        let json = openapi_json(Served::default()).expect("a document");
+        let mut doc: Value = serde_json::from_str(&json).expect("JSON");
         for operation in OPERATIONS {
+            let want = json!(operation.unprocessable());
             let response = unprocessable(&mut doc, operation).expect("a 422 response");
-            let listed: Vec<String> = response["x-problem-codes"]
-                .as_array()
-                .expect("codes")
-                .iter()
-                .filter_map(|c| c.as_str().map(str::to_owned))
-                .collect();
-            let want: Vec<String> = operation
-                .unprocessable()
-                .iter()
-                .map(|c| {
-                    serde_json::to_value(c)
-                        .expect("a code")
-                        .as_str()
-                        .unwrap_or_default()
-                        .to_owned()
-                })
-                .collect();
-            assert_eq!(listed, want, "{operation:?}");
+            assert_eq!(response["x-problem-codes"], want, "{operation:?}");
             let description = response["description"].as_str().expect("a description");
-            assert!(
-                description.contains(&format!("`{}`", want[0])),
-                "{description}"
-            );
+            assert!(description.contains(&format!("`{}`", want[0].as_str().expect("a code"))));
         }
     }
 }

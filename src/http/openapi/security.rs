@@ -8,13 +8,13 @@
 //! Tokens are checked only when the server runs with `--auth-file`; the document describes
 //! such a server (a token sent to a server without one is ignored).
 
-use crate::http::auth::{Access, BEARER_SUBPROTOCOL_PREFIX, STREAM_SUBPROTOCOL, access_for};
+use crate::http::auth::{Access, access_for};
 use serde_json::{Value, json};
 
 /// The name of the scheme in `components.securitySchemes`.
 pub const SCHEME: &str = "bearer";
 
-fn scheme_description() -> String {
+pub(crate) fn scheme_description() -> String {
     "A client's token from the auth file (`qrpose serve --auth-file`, docs/security.md): \
      `Authorization: Bearer TOKEN`. Each protected operation names the scope its client \
      needs: `pose` (/v1/pose/*, /v1/stream, /v1/calibrate), `site` (GET /v1/site), `admin` \
@@ -69,35 +69,6 @@ pub fn declare_security(doc: &mut Value) {
                     problem("`forbidden`: the client lacks the scope this operation needs.")
                 });
             }
-        }
-    }
-}
-
-/// Declares how a stream session carries its token in the AsyncAPI document: the bearer
-/// header, or for a browser the subprotocol `bearer.TOKEN` offered beside `qrpose`.
-pub fn declare_asyncapi_security(doc: &mut Value) {
-    if let Some(components) = doc.get_mut("components").and_then(Value::as_object_mut) {
-        components.insert(
-            "securitySchemes".to_owned(),
-            json!({
-                SCHEME: {"type": "http", "scheme": "bearer",
-                    "description": format!("{} The stream needs `pose`.", scheme_description())},
-                "subprotocol": {"type": "httpApiKey", "in": "header", "name": "Sec-WebSocket-Protocol",
-                    "description": format!("For a browser, which cannot set headers on a WebSocket: \
-                        offer the subprotocols `{STREAM_SUBPROTOCOL}` and \
-                        `{BEARER_SUBPROTOCOL_PREFIX}TOKEN` (new WebSocket(url, [\"{STREAM_SUBPROTOCOL}\", \
-                        \"{BEARER_SUBPROTOCOL_PREFIX}\" + token])); the answer selects \
-                        `{STREAM_SUBPROTOCOL}`. Never put the token in the query string.")},
-            }),
-        );
-    }
-    let requirements = json!([
-        {"$ref": format!("#/components/securitySchemes/{SCHEME}")},
-        {"$ref": "#/components/securitySchemes/subprotocol"},
-    ]);
-    if let Some(servers) = doc.get_mut("servers").and_then(Value::as_object_mut) {
-        for server in servers.values_mut().filter_map(Value::as_object_mut) {
-            server.insert("security".to_owned(), requirements.clone());
         }
     }
 }

@@ -4,6 +4,7 @@
 //! goes through the application layer (`app::TrackSession::frame`) on an estimation worker,
 //! behind the same queue and pixel budget as a photo ([`session`]).
 
+pub mod asyncapi;
 pub mod query;
 pub mod session;
 

@@ -5,11 +5,20 @@
 //! for the OpenAPI document, so the two documents cannot disagree; a test validates the
 //! answers a real session sends against them.
 
-use super::alternatives::{Served, write_alternatives};
+use crate::api::alternatives::{Rule, rules};
 use crate::api::image::ImageQuery;
 use crate::api::problem::Problem;
 use crate::api::stream::{FrameMetaDto, FrameProblem, StreamAnswer, TrackQuery};
+use crate::http::auth::{BEARER_SUBPROTOCOL_PREFIX, STREAM_SUBPROTOCOL};
+use crate::http::error::ApiError;
+use crate::http::openapi::security::{SCHEME, scheme_description};
+use crate::http::openapi::{Rendered, Served, openapi, rendered, write_alternatives};
+use crate::http::state::AppState;
+use axum::extract::State;
+use axum::http::header;
+use axum::response::IntoResponse;
 use serde_json::{Map, Value, json};
+use std::sync::OnceLock;
 use utoipa::{IntoParams, OpenApi};
 
 /// The components the stream's messages refer to.
@@ -62,10 +71,17 @@ pub const ASYNCAPI_PATH: &str = "/asyncapi.json";
 /// `query`), as `served` accepts them.
 fn query_schema(served: Served) -> Value {
     let mut properties = Map::new();
+    let refused: Vec<&str> = rules(served.site, served.zxing_cpp)
+        .into_iter()
+        .filter_map(|rule| match rule {
+            Rule::NoParameter(name) => Some(name),
+            _ => None,
+        })
+        .collect();
     let parameters = ImageQuery::into_params(|| None)
         .into_iter()
         .chain(TrackQuery::into_params(|| None))
-        .filter(|p| served.site || p.name != "camera_id");
+        .filter(|p| !refused.contains(&p.name.as_str()));
     for p in parameters {
         let mut schema = serde_json::to_value(&p.schema).unwrap_or(Value::Null);
         if let (Some(description), Some(map)) = (&p.description, schema.as_object_mut()) {
@@ -85,7 +101,7 @@ pub fn asyncapi_json(served: Served) -> Result<String, serde_json::Error> {
     // Every schema of the service (some the stream's types refer to are collected only
     // through the routes), the stream's own, and the alternatives written in, as for the
     // OpenAPI document; then only those the messages reach.
-    let mut doc = serde_json::to_value(super::openapi())?;
+    let mut doc = serde_json::to_value(openapi())?;
     let stream = serde_json::to_value(StreamSchemas::openapi())?;
     if let (Some(all), Some(own)) = (
         doc.pointer_mut("/components/schemas")
@@ -172,9 +188,58 @@ pub fn asyncapi_json(served: Served) -> Result<String, serde_json::Error> {
         "components": {"messages": messages, "schemas": schemas},
     });
     if served.auth {
-        super::security::declare_asyncapi_security(&mut doc);
+        declare_asyncapi_security(&mut doc);
     }
     serde_json::to_string_pretty(&doc).map(|json| json + "\n")
+}
+
+/// Declares how a stream session carries its token in the AsyncAPI document: the bearer
+/// header, or for a browser the subprotocol `bearer.TOKEN` offered beside `qrpose`.
+pub fn declare_asyncapi_security(doc: &mut Value) {
+    if let Some(components) = doc.get_mut("components").and_then(Value::as_object_mut) {
+        components.insert(
+            "securitySchemes".to_owned(),
+            json!({
+                SCHEME: {"type": "http", "scheme": "bearer",
+                    "description": format!("{} The stream needs `pose`.", scheme_description())},
+                "subprotocol": {"type": "httpApiKey", "in": "header", "name": "Sec-WebSocket-Protocol",
+                    "description": format!("For a browser, which cannot set headers on a WebSocket: \
+                        offer the subprotocols `{STREAM_SUBPROTOCOL}` and \
+                        `{BEARER_SUBPROTOCOL_PREFIX}TOKEN` (new WebSocket(url, [\"{STREAM_SUBPROTOCOL}\", \
+                        \"{BEARER_SUBPROTOCOL_PREFIX}\" + token])); the answer selects \
+                        `{STREAM_SUBPROTOCOL}`. Never put the token in the query string.")},
+            }),
+        );
+    }
+    let requirements = json!([
+        {"$ref": format!("#/components/securitySchemes/{SCHEME}")},
+        {"$ref": "#/components/securitySchemes/subprotocol"},
+    ]);
+    if let Some(servers) = doc.get_mut("servers").and_then(Value::as_object_mut) {
+        for server in servers.values_mut().filter_map(Value::as_object_mut) {
+            server.insert("security".to_owned(), requirements.clone());
+        }
+    }
+}
+
+/// The AsyncAPI 3 document of `GET /v1/stream`'s messages, as this server is configured
+/// (identical to `qrpose asyncapi`, or `qrpose asyncapi --site` when a site is loaded).
+#[utoipa::path(
+    get,
+    path = "/asyncapi.json",
+    tag = "operations",
+    operation_id = "asyncapi_json",
+    responses((status = 200, description = "The AsyncAPI 3.0 document of the stream.",
+        body = Object, content_type = "application/json"))
+)]
+pub async fn serve_asyncapi_json(
+    State(state): State<AppState>,
+) -> Result<impl IntoResponse, ApiError> {
+    static DOCUMENTS: Rendered = [const { OnceLock::new() }; 8];
+    let json = rendered(&DOCUMENTS, Served::by(&state), asyncapi_json)
+        .as_ref()
+        .map_err(ApiError::internal)?;
+    Ok(([(header::CONTENT_TYPE, "application/json")], json.clone()))
 }
 
 #[cfg(test)]
