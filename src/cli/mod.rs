@@ -10,6 +10,7 @@ mod estimate;
 mod healthcheck;
 mod openapi;
 mod serve;
+mod sim;
 mod site;
 mod track;
 
@@ -62,6 +63,12 @@ pub enum Command {
     /// Clients of the auth file (docs/security.md): `qrpose auth add NAME --scopes pose`
     /// prints a new token once and the file's entry.
     Auth(auth::AuthArgs),
+    /// A synthetic photo of a code with its ground truth: runs `qrpose-sim render` (the
+    /// developer binary, `cargo build --release -p qrpose-sim`) with these arguments.
+    Render(sim::SimArgs),
+    /// The paper's simulation (its Figures 8-12): runs `qrpose-sim simulate` with these
+    /// arguments.
+    Simulate(sim::SimArgs),
 }
 
 /// A command-line mistake in one of `estimate --image`'s parameters as the problem document
@@ -115,5 +122,7 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Site(args) => site::run(&args),
         Command::Track(args) => track::run(&args),
         Command::Auth(args) => auth::run(&args),
+        Command::Render(args) => sim::run("render", &args),
+        Command::Simulate(args) => sim::run("simulate", &args),
     }
 }

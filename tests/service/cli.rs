@@ -258,3 +258,41 @@ fn the_documents_declare_the_bearer_scheme_only_with_auth() {
         );
     }
 }
+
+/// `qrpose render` and `qrpose simulate` run `qrpose-sim` (here `$QRPOSE_SIM`, a script
+/// that prints its arguments) with every argument, `--help` included, and exit as it does.
+#[test]
+fn render_and_simulate_run_qrpose_sim_with_their_arguments() {
+    let dir = crate::support::scratch_dir("qrpose-sim-forwarding");
+    let script = dir.join("qrpose-sim");
+    std::fs::write(&script, "#!/bin/sh\necho \"$@\"\nexit 3\n").expect("write the script");
+    std::fs::set_permissions(&script, std::os::unix::fs::PermissionsExt::from_mode(0o755))
+        .expect("make it executable");
+    for (subcommand, args) in [
+        ("render", ["--out", "code.jpg", "--z-mm", "400"].as_slice()),
+        ("simulate", ["--method", "paper", "--help"].as_slice()),
+    ] {
+        let out = Command::new(BIN)
+            .arg(subcommand)
+            .args(args)
+            .env("QRPOSE_SIM", &script)
+            .output()
+            .expect("qrpose runs");
+        assert_eq!(out.status.code(), Some(3), "qrpose-sim's exit code");
+        assert_eq!(
+            String::from_utf8_lossy(&out.stdout).trim(),
+            format!("{subcommand} {}", args.join(" "))
+        );
+    }
+    let missing = Command::new(BIN)
+        .args(["render", "--out", "x.jpg"])
+        .env("QRPOSE_SIM", dir.join("absent"))
+        .output()
+        .expect("qrpose runs");
+    assert_eq!(missing.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&missing.stderr).contains("cargo build --release -p qrpose-sim"),
+        "says how to get it: {}",
+        String::from_utf8_lossy(&missing.stderr)
+    );
+}
