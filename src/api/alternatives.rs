@@ -27,7 +27,7 @@ pub struct Form {
     /// What the alternative is, for people: the first line of its description.
     pub summary: &'static str,
     /// The derived object's fields that make it up.
-    pub fields: &'static [&'static str],
+    pub fields: Vec<&'static str>,
     /// The fields it requires (never null).
     pub required: &'static [&'static str],
     /// Fields whose schema this form narrows.

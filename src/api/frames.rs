@@ -132,7 +132,7 @@ pub fn prior_forms() -> Rule {
     let form = |name, summary, fields: &'static [&'static str; 2]| Form {
         name,
         summary,
-        fields,
+        fields: fields.to_vec(),
         required: fields,
         narrowed: vec![(
             fields[0],

@@ -52,7 +52,7 @@ pub fn robot_pose_forms() -> Rule {
     let form = |name, summary, fields: &'static [&'static str; 2]| Form {
         name,
         summary,
-        fields,
+        fields: fields.to_vec(),
         required: fields,
         narrowed: vec![],
     };

@@ -14,14 +14,14 @@ pub fn camera_forms(site: bool) -> Rule {
         Form {
             name: "CameraPixels",
             summary: "pixels",
-            fields: &["fx_px", "fy_px", "cx_px", "cy_px", "distortion"],
+            fields: vec!["fx_px", "fy_px", "cx_px", "cy_px", "distortion"],
             required: &["fx_px", "fy_px", "cx_px", "cy_px"],
             narrowed: vec![],
         },
         Form {
             name: "CameraSensor",
             summary: "sensor",
-            fields: &[
+            fields: vec![
                 "focal_length_mm",
                 "pixel_size_um",
                 "cx_px",
@@ -36,7 +36,7 @@ pub fn camera_forms(site: bool) -> Rule {
         forms.push(Form {
             name: "CameraSiteId",
             summary: "site camera",
-            fields: &["id"],
+            fields: vec!["id"],
             required: &["id"],
             narrowed: vec![],
         });
@@ -44,7 +44,7 @@ pub fn camera_forms(site: bool) -> Rule {
     forms.push(Form {
         name: IMAGE_PLANE,
         summary: "image plane (corners_mm only)",
-        fields: &["focal_length_mm", "pixel_size_um", "distortion"],
+        fields: vec!["focal_length_mm", "pixel_size_um", "distortion"],
         required: &["focal_length_mm"],
         narrowed: vec![],
     });
@@ -89,7 +89,7 @@ pub fn distortion_forms() -> Rule {
     let form = |name, summary, required, model, lacking| Form {
         name,
         summary,
-        fields: DISTORTION_FIELDS,
+        fields: DISTORTION_FIELDS.to_vec(),
         required,
         narrowed: fixed(model, lacking),
     };

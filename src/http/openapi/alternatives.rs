@@ -112,7 +112,7 @@ fn split(schemas: &mut Map<String, Value>, name: &str, forms: &[Form], only_with
 /// `PixelCornersRequest`): the summary opens the description.
 fn form_of(object: &Value, form: &Form) -> Value {
     let mut properties = Map::new();
-    for field in form.fields {
+    for field in &form.fields {
         let derived = object["properties"][*field].clone();
         let schema = match form.narrowed.iter().find(|(name, _)| name == field) {
             Some((_, Narrowed::To(narrower))) => with_description_of(narrower.clone(), &derived),
@@ -229,7 +229,7 @@ mod tests {
         Form {
             name,
             summary: name,
-            fields,
+            fields: fields.to_vec(),
             required: &fields[..1],
             narrowed,
         }

@@ -14,22 +14,19 @@ fn unprocessable(doc: &mut Value, operation: Operation) -> Option<&mut Value> {
 /// Writes every operation's codes into its 422 response.
 pub fn write_problem_codes(doc: &mut Value) {
     for operation in OPERATIONS {
-        let codes: Vec<Value> = operation
-            .unprocessable()
-            .into_iter()
-            .map(|code| json!(code))
-            .collect();
+        let codes = json!(operation.unprocessable());
         let Some(response) = unprocessable(doc, operation) else {
             continue;
         };
         let names: Vec<String> = codes
-            .iter()
-            .filter_map(Value::as_str)
-            .map(|c| format!("`{c}`"))
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|c| format!("`{}`", c.as_str().unwrap_or_default()))
             .collect();
         let description = response["description"].as_str().unwrap_or_default();
         response["description"] = json!(format!("{description} Codes: {}.", names.join(", ")));
-        response["x-problem-codes"] = Value::Array(codes);
+        response["x-problem-codes"] = codes;
     }
 }
 

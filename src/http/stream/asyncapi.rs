@@ -12,10 +12,9 @@ use crate::api::stream::{FrameMetaDto, FrameProblem, StreamAnswer, TrackQuery};
 use crate::http::auth::{BEARER_SUBPROTOCOL_PREFIX, STREAM_SUBPROTOCOL};
 use crate::http::error::ApiError;
 use crate::http::openapi::security::{SCHEME, scheme_description};
-use crate::http::openapi::{Rendered, Served, openapi, rendered, write_alternatives};
+use crate::http::openapi::{Rendered, Served, openapi, serve_document, write_alternatives};
 use crate::http::state::AppState;
 use axum::extract::State;
-use axum::http::header;
 use axum::response::IntoResponse;
 use serde_json::{Map, Value, json};
 use std::sync::OnceLock;
@@ -236,10 +235,7 @@ pub async fn serve_asyncapi_json(
     State(state): State<AppState>,
 ) -> Result<impl IntoResponse, ApiError> {
     static DOCUMENTS: Rendered = [const { OnceLock::new() }; 8];
-    let json = rendered(&DOCUMENTS, Served::by(&state), asyncapi_json)
-        .as_ref()
-        .map_err(ApiError::internal)?;
-    Ok(([(header::CONTENT_TYPE, "application/json")], json.clone()))
+    serve_document(&DOCUMENTS, Served::by(&state), asyncapi_json)
 }
 
 #[cfg(test)]
