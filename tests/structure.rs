@@ -128,6 +128,10 @@ fn no_source_file_is_over_500_lines() {
 /// dated logs).
 const README_MAX_LINES: usize = 250;
 
+/// Most rows of the README's results table (the one whose header starts `| what | result`);
+/// the other figures live in the docs it links.
+const README_MAX_RESULT_ROWS: usize = 8;
+
 /// The two commands a fresh machine with only the Rust toolchain runs first.
 const FIRST_COMMANDS: [&str; 2] = ["cargo run --release -- serve", "cargo test"];
 
@@ -146,6 +150,16 @@ fn the_readme_is_short_and_starts_with_the_two_commands() {
             "README.md's first 20 lines lack `{command}`"
         );
     }
+    let rows = readme
+        .lines()
+        .skip_while(|l| !l.starts_with("| what | result"))
+        .skip(2)
+        .take_while(|l| l.starts_with('|'))
+        .count();
+    assert!(
+        (1..=README_MAX_RESULT_ROWS).contains(&rows),
+        "README.md's results table has {rows} rows, at most {README_MAX_RESULT_ROWS}"
+    );
 }
 
 /// Whether `word` looks like an abbreviated or full git commit hash: 7-40 lowercase hex
