@@ -7,7 +7,7 @@
 
 use super::context::unknown_marker_size;
 use super::problem::{ErrorCode, Problem};
-use crate::app::{CalibrateError, CornersError, HandEyeRequestError, ImageError};
+use crate::app::{CalibrateError, CornersError, HandEyeRequestError, ImageError, PhotoError};
 use crate::detect::{
     DetectError,
     decode::DecodeError,
@@ -167,10 +167,25 @@ pub fn problem_from_marker_error(
 /// The multipart part (and `qrpose calibrate` argument) of a calibration's photos.
 const PHOTOS_PART: &str = "image";
 
+/// The problem of a photo that could not be read (`image/K`), or of a calibration cancelled
+/// while they were read.
+fn problem_from_photo_error(err: &PhotoError) -> Problem {
+    let photo = |index: usize| format!("{PHOTOS_PART}/{index}");
+    match err {
+        PhotoError::Decode { index, source } => {
+            let problem = problem_from_decode_error(source);
+            Problem::new(problem.code, err.to_string()).with_field(photo(*index))
+        }
+        PhotoError::MixedSizes { index, .. } => {
+            Problem::new(ErrorCode::MixedImageSizes, err.to_string()).with_field(photo(*index))
+        }
+        PhotoError::Cancelled => Problem::new(ErrorCode::Timeout, err.to_string()),
+    }
+}
+
 /// The problem for photos the application could not calibrate from; `field` names the part
 /// `image` (the photos), with the photo's index where one photo is at fault.
 pub fn problem_from_calibrate_error(err: &CalibrateError) -> Problem {
-    let photo = |index: usize| format!("{PHOTOS_PART}/{index}");
     match err {
         CalibrateError::TooFewPhotos { .. } | CalibrateError::TooFewViews { .. } => {
             Problem::new(ErrorCode::TooFewViews, err.to_string()).with_field(PHOTOS_PART)
@@ -178,13 +193,7 @@ pub fn problem_from_calibrate_error(err: &CalibrateError) -> Problem {
         CalibrateError::TooManyPhotos { .. } => {
             Problem::new(ErrorCode::TooManyImages, err.to_string()).with_field(PHOTOS_PART)
         }
-        CalibrateError::Decode { index, source } => {
-            let problem = problem_from_decode_error(source);
-            Problem::new(problem.code, err.to_string()).with_field(photo(*index))
-        }
-        CalibrateError::MixedSizes { index, .. } => {
-            Problem::new(ErrorCode::MixedImageSizes, err.to_string()).with_field(photo(*index))
-        }
+        CalibrateError::Photo(e) => problem_from_photo_error(e),
         CalibrateError::NoCodeFound { .. } => {
             Problem::new(ErrorCode::NoCodeFound, err.to_string()).with_field(PHOTOS_PART)
         }
@@ -194,14 +203,12 @@ pub fn problem_from_calibrate_error(err: &CalibrateError) -> Problem {
             }
             _ => Problem::new(ErrorCode::CalibrationFailed, err.to_string()),
         },
-        CalibrateError::Cancelled => Problem::new(ErrorCode::Timeout, err.to_string()),
     }
 }
 
 /// The problem document of a hand-eye calibration that gave no answer; `field` names the
 /// photo (`image/K`), the photos (`image`) or the flange poses.
 pub fn problem_from_hand_eye_error(err: &HandEyeRequestError) -> Problem {
-    let photo = |index: usize| format!("{PHOTOS_PART}/{index}");
     match err {
         HandEyeRequestError::FlangePosesMismatch { .. } => {
             Problem::new(ErrorCode::FlangePosesMismatch, err.to_string())
@@ -213,13 +220,7 @@ pub fn problem_from_hand_eye_error(err: &HandEyeRequestError) -> Problem {
         HandEyeRequestError::TooManyPhotos { .. } => {
             Problem::new(ErrorCode::TooManyImages, err.to_string()).with_field(PHOTOS_PART)
         }
-        HandEyeRequestError::Decode { index, source } => {
-            let problem = problem_from_decode_error(source);
-            Problem::new(problem.code, err.to_string()).with_field(photo(*index))
-        }
-        HandEyeRequestError::MixedSizes { index } => {
-            Problem::new(ErrorCode::MixedImageSizes, err.to_string()).with_field(photo(*index))
-        }
+        HandEyeRequestError::Photo(e) => problem_from_photo_error(e),
         HandEyeRequestError::NoCodeFound { .. } => {
             Problem::new(ErrorCode::NoCodeFound, err.to_string()).with_field(PHOTOS_PART)
         }
@@ -241,6 +242,5 @@ pub fn problem_from_hand_eye_error(err: &HandEyeRequestError) -> Problem {
                 Problem::new(ErrorCode::CalibrationFailed, err.to_string())
             }
         },
-        HandEyeRequestError::Cancelled => Problem::new(ErrorCode::Timeout, err.to_string()),
     }
 }

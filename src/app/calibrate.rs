@@ -95,30 +95,9 @@ pub enum CalibrateError {
         /// The limit.
         max: usize,
     },
-    /// A photo is not an image this service reads, or is over the limits.
-    #[error("photo {index}: {source}")]
-    Decode {
-        /// The photo, 0-based.
-        index: usize,
-        /// Why.
-        source: DecodeError,
-    },
-    /// A photo's size differs from the first's.
-    #[error(
-        "photo {index} is {width_px} x {height_px} px, photo 0 {first_width_px} x {first_height_px} px: every photo must come from one camera at one resolution"
-    )]
-    MixedSizes {
-        /// The photo, 0-based.
-        index: usize,
-        /// Its width, px.
-        width_px: u32,
-        /// Its height, px.
-        height_px: u32,
-        /// The first photo's width, px.
-        first_width_px: u32,
-        /// The first photo's height, px.
-        first_height_px: u32,
-    },
+    /// A photo could not be read, or the request gave up while they were read.
+    #[error(transparent)]
+    Photo(#[from] PhotoError),
     /// No photo has a decoded code.
     #[error("no QR code was decoded in any of the {photos} photos")]
     NoCodeFound {
@@ -145,6 +124,35 @@ pub enum CalibrateError {
     /// numbers failed).
     #[error(transparent)]
     Calibration(#[from] CalibrationError),
+}
+
+/// Why photos could not be read, for a camera or a hand-eye calibration alike.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PhotoError {
+    /// A photo is not an image this service reads, or is over the limits.
+    #[error("photo {index}: {source}")]
+    Decode {
+        /// The photo, 0-based.
+        index: usize,
+        /// Why.
+        source: DecodeError,
+    },
+    /// A photo's size differs from the first's.
+    #[error(
+        "photo {index} is {width_px} x {height_px} px, photo 0 {first_width_px} x {first_height_px} px: every photo must come from one camera at one resolution"
+    )]
+    MixedSizes {
+        /// The photo, 0-based.
+        index: usize,
+        /// Its width, px.
+        width_px: u32,
+        /// Its height, px.
+        height_px: u32,
+        /// The first photo's width, px.
+        first_width_px: u32,
+        /// The first photo's height, px.
+        first_height_px: u32,
+    },
     /// The request gave up (a timeout, a closed connection) while the photos were read.
     #[error("the calibration was cancelled")]
     Cancelled,
@@ -174,37 +182,17 @@ pub fn calibrate_photos<B: AsRef<[u8]>>(
             max: MAX_PHOTOS,
         });
     }
-    let started = Instant::now();
-    let mut size: Option<ImageSize> = None;
-    let mut reports = Vec::with_capacity(given);
+    let read = read_photos(photos, &setup.decode, setup.max_detect, cancel, |_| {
+        Some(setup.marker)
+    })?;
+    let mut reports = read.reports;
     let mut views = Vec::new();
-    for (index, bytes) in photos.iter().enumerate() {
-        if cancel.is_cancelled() {
-            return Err(CalibrateError::Cancelled);
-        }
-        let image = decode::decode_gray(bytes.as_ref(), &setup.decode)
-            .map_err(|source| CalibrateError::Decode { index, source })?;
-        let this = image_size(&image);
-        let first = *size.get_or_insert(this);
-        if this != first {
-            return Err(CalibrateError::MixedSizes {
-                index,
-                width_px: this.width_px,
-                height_px: this.height_px,
-                first_width_px: first.width_px,
-                first_height_px: first.height_px,
-            });
-        }
-        let mut report = photo_points(&image, index, setup.max_detect, cancel, |_| {
-            Some(setup.marker)
-        });
+    for report in &mut reports {
         if report.points.len() >= MIN_POINTS_PER_VIEW {
             report.view = Some(views.len());
             views.push(view_of(&report.points));
         }
-        reports.push(report);
     }
-    let detect_ms = ms_since(started);
     let with_code = reports.iter().filter(|r| r.codes_decoded > 0).count();
     if with_code == 0 {
         return Err(CalibrateError::NoCodeFound { photos: given });
@@ -232,19 +220,68 @@ pub fn calibrate_photos<B: AsRef<[u8]>>(
         model: setup.model,
         ..Options::default()
     };
-    // Every photo decoded, so there is a first size.
-    let image = size.unwrap_or(ImageSize::new(0, 0));
-    let calibration = qrpose_calib::calibrate(&views, image, &options)?;
+    let calibration = qrpose_calib::calibrate(&views, read.size, &options)?;
     Ok(CalibrateAnswer {
         photos: reports,
         calibration,
-        detect_ms,
+        detect_ms: read.detect_ms,
         solve_ms: ms_since(started),
     })
 }
 
+/// Photos read for a calibration: each one's report, their one size, and the time it took.
+pub(super) struct ReadPhotos {
+    /// Each photo's codes and points, in order.
+    pub reports: Vec<PhotoReport>,
+    /// The size every photo has (that of the first; 0 × 0 for no photo).
+    pub size: ImageSize,
+    /// Decoding and detecting every photo and measuring its points, ms.
+    pub detect_ms: f64,
+}
+
+/// Decodes every photo, checks it against the first's size and measures its best code
+/// ([`photo_points`], sized by `size_of`), in order; `cancel` stops it between photos.
+///
+/// # Errors
+/// [`PhotoError`]: a photo that does not decode or differs in size, cancellation.
+pub(super) fn read_photos<B: AsRef<[u8]>>(
+    photos: &[B],
+    limits: &DecodeLimits,
+    max_detect: Duration,
+    cancel: &CancelFlag,
+    size_of: impl Fn(Option<&str>) -> Option<Marker>,
+) -> Result<ReadPhotos, PhotoError> {
+    let started = Instant::now();
+    let mut size: Option<ImageSize> = None;
+    let mut reports = Vec::with_capacity(photos.len());
+    for (index, bytes) in photos.iter().enumerate() {
+        if cancel.is_cancelled() {
+            return Err(PhotoError::Cancelled);
+        }
+        let image = decode::decode_gray(bytes.as_ref(), limits)
+            .map_err(|source| PhotoError::Decode { index, source })?;
+        let this = image_size(&image);
+        let first = *size.get_or_insert(this);
+        if this != first {
+            return Err(PhotoError::MixedSizes {
+                index,
+                width_px: this.width_px,
+                height_px: this.height_px,
+                first_width_px: first.width_px,
+                first_height_px: first.height_px,
+            });
+        }
+        reports.push(photo_points(&image, index, max_detect, cancel, &size_of));
+    }
+    Ok(ReadPhotos {
+        reports,
+        size: size.unwrap_or(ImageSize::new(0, 0)),
+        detect_ms: ms_since(started),
+    })
+}
+
 /// The decoded image's size.
-pub(super) fn image_size(image: &GrayImage) -> ImageSize {
+fn image_size(image: &GrayImage) -> ImageSize {
     // Decoded sides are at most the decoder's limits, far below u32::MAX.
     let side = |x: usize| u32::try_from(x).unwrap_or(u32::MAX);
     ImageSize::new(side(image.width()), side(image.height()))
@@ -252,7 +289,7 @@ pub(super) fn image_size(image: &GrayImage) -> ImageSize {
 
 /// The codes of one photo, and the points of the decoded one with the most, each code
 /// measured at the size `size_of` gives its payload (a code it gives none is left out).
-pub(super) fn photo_points(
+fn photo_points(
     image: &GrayImage,
     index: usize,
     max_detect: Duration,
@@ -290,7 +327,7 @@ pub(super) fn photo_points(
 
 /// The calibration view of a code's points: each point's (x, y) on the marker, mm, and
 /// where the photo shows it.
-fn view_of(points: &[TargetPoint]) -> View {
+pub(super) fn view_of(points: &[TargetPoint]) -> View {
     View {
         points: points
             .iter()
@@ -337,7 +374,7 @@ mod tests {
         let garbage = vec![b"not an image".to_vec(); 3];
         assert!(matches!(
             calibrate_photos(&setup(), &garbage, &cancel),
-            Err(CalibrateError::Decode { index: 0, .. })
+            Err(CalibrateError::Photo(PhotoError::Decode { index: 0, .. }))
         ));
     }
 }

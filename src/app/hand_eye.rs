@@ -8,17 +8,15 @@
 //! [`calibrate_hand_eye`]: a closed form on the per-view poses, then one
 //! robust fit of the mount, the target and every flange pose as a noisy measurement.
 
-use super::calibrate::{PhotoReport, image_size, ms_since, photo_points};
+use super::calibrate::{PhotoError, PhotoReport, ms_since, read_photos, view_of};
 use super::setup::{SizeResolver, Sizing};
 use qrpose_calib::handeye::{
     FlangeNoise, HandEyeCalibration, HandEyeError, HandEyeOptions, HandEyeSetup, HandEyeView,
     MIN_HAND_EYE_VIEWS, calibrate_hand_eye,
 };
-use qrpose_calib::{Correspondence, ImageSize};
 use qrpose_core::geometry::camera::Camera;
-use qrpose_core::geometry::marker::Marker;
 use qrpose_detect::cancel::CancelFlag;
-use qrpose_detect::decode::{self, DecodeError, DecodeLimits};
+use qrpose_detect::decode::DecodeLimits;
 use qrpose_detect::pipeline::MarkerSizes;
 use qrpose_site::Site;
 use qrpose_site::transform::Rigid;
@@ -89,20 +87,9 @@ pub enum HandEyeRequestError {
         /// The limit.
         max: usize,
     },
-    /// A photo is not an image this service reads, or is over the limits.
-    #[error("photo {index}: {source}")]
-    Decode {
-        /// The photo, 0-based.
-        index: usize,
-        /// Why.
-        source: DecodeError,
-    },
-    /// A photo's size differs from the first's.
-    #[error("photo {index} is not the size of photo 0: every photo must come from one camera")]
-    MixedSizes {
-        /// The photo, 0-based.
-        index: usize,
-    },
+    /// A photo could not be read, or the request gave up while they were read.
+    #[error(transparent)]
+    Photo(#[from] PhotoError),
     /// No photo has a decoded code of a known size.
     #[error("no QR code of a known size was decoded in any of the {photos} photos")]
     NoCodeFound {
@@ -112,9 +99,6 @@ pub enum HandEyeRequestError {
     /// The solve refused the views.
     #[error(transparent)]
     Solve(#[from] HandEyeError),
-    /// The request gave up while the photos were read.
-    #[error("the calibration was cancelled")]
-    Cancelled,
 }
 
 /// Calibrates the camera's mount from `photos` (JPEG, PNG or WebP) and the flange poses of
@@ -147,49 +131,30 @@ pub fn calibrate_hand_eye_photos<B: AsRef<[u8]>>(
             max: MAX_HAND_EYE_PHOTOS,
         });
     }
-    let started = Instant::now();
-    let mut size: Option<ImageSize> = None;
-    let mut reports = Vec::with_capacity(given);
-    let mut views = Vec::with_capacity(given);
     let sizes = SizeResolver::new(setup.sizing, setup.site.as_deref());
     let size_of = |payload: Option<&str>| sizes.marker_for(payload).map(|(marker, _)| marker);
-    let mut marker: Option<Marker> = None;
-    for ((index, bytes), flange) in photos.iter().enumerate().zip(&setup.flange_poses) {
-        if cancel.is_cancelled() {
-            return Err(HandEyeRequestError::Cancelled);
-        }
-        let image = decode::decode_gray(bytes.as_ref(), &setup.decode)
-            .map_err(|source| HandEyeRequestError::Decode { index, source })?;
-        let this = image_size(&image);
-        if this != *size.get_or_insert(this) {
-            return Err(HandEyeRequestError::MixedSizes { index });
-        }
-        let report = photo_points(&image, index, setup.max_detect, cancel, size_of);
-        if !report.points.is_empty() {
-            marker = marker.or_else(|| size_of(report.payload.as_deref()));
-        }
-        views.push(HandEyeView {
-            correspondences: report
-                .points
-                .iter()
-                .map(|p| {
-                    Correspondence::new(p.marker.0.x, p.marker.0.y, p.pixel_px.u(), p.pixel_px.v())
-                })
-                .collect(),
-            flange_pose: flange.to_isometry(),
-        });
-        reports.push(report);
-    }
-    let detect_ms = ms_since(started);
-    let Some(marker) = marker else {
+    let read = read_photos(photos, &setup.decode, setup.max_detect, cancel, size_of)?;
+    let Some(marker) = read
+        .reports
+        .iter()
+        .find(|r| !r.points.is_empty())
+        .and_then(|r| size_of(r.payload.as_deref()))
+    else {
         return Err(HandEyeRequestError::NoCodeFound { photos: given });
     };
+    let views: Vec<HandEyeView> = read
+        .reports
+        .iter()
+        .zip(&setup.flange_poses)
+        .map(|(report, flange)| HandEyeView {
+            correspondences: view_of(&report.points).points,
+            flange_pose: flange.to_isometry(),
+        })
+        .collect();
     let started = Instant::now();
-    // Every photo decoded, so there is a first size.
-    let image = size.unwrap_or(ImageSize::new(0, 0));
     let calibration = calibrate_hand_eye(
         &setup.camera,
-        image,
+        read.size,
         &marker,
         &views,
         setup.setup,
@@ -199,9 +164,9 @@ pub fn calibrate_hand_eye_photos<B: AsRef<[u8]>>(
         },
     )?;
     Ok(HandEyeAnswer {
-        photos: reports,
+        photos: read.reports,
         calibration,
-        detect_ms,
+        detect_ms: read.detect_ms,
         solve_ms: ms_since(started),
     })
 }
@@ -210,6 +175,7 @@ pub fn calibrate_hand_eye_photos<B: AsRef<[u8]>>(
 mod tests {
     use super::*;
     use qrpose_core::geometry::camera::Camera;
+    use qrpose_core::geometry::marker::Marker;
     use qrpose_site::SizeSource;
 
     fn setup(poses: usize) -> HandEyeRequestSetup {
@@ -246,7 +212,39 @@ mod tests {
         ));
         assert!(matches!(
             calibrate_hand_eye_photos(&setup(5), &five, &cancel),
-            Err(HandEyeRequestError::Decode { index: 0, .. })
+            Err(HandEyeRequestError::Photo(PhotoError::Decode {
+                index: 0,
+                ..
+            }))
         ));
+    }
+
+    /// A grey PNG of `side` × `side` px.
+    fn png(side: u32) -> Vec<u8> {
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image::GrayImage::from_pixel(side, side, image::Luma([128]))
+            .write_to(&mut bytes, image::ImageFormat::Png)
+            .expect("a PNG");
+        bytes.into_inner()
+    }
+
+    #[test]
+    fn a_photo_of_another_size_is_named_with_both_sizes() {
+        let photos = [png(32), png(32), png(32), png(48)];
+        let err = calibrate_hand_eye_photos(&setup(4), &photos, &CancelFlag::new())
+            .expect_err("mixed sizes");
+        assert!(matches!(
+            err,
+            HandEyeRequestError::Photo(PhotoError::MixedSizes {
+                index: 3,
+                width_px: 48,
+                first_width_px: 32,
+                ..
+            })
+        ));
+        assert!(
+            err.to_string().contains("48 x 48 px, photo 0 32 x 32 px"),
+            "{err}"
+        );
     }
 }

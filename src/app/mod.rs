@@ -43,8 +43,8 @@ pub use qrpose_detect::decode::{DecodeLimits, admission_pixels};
 pub use qrpose_site::{Site, SiteError};
 
 pub use calibrate::{
-    CalibrateAnswer, CalibrateError, CalibrateSetup, MAX_PHOTOS, MIN_PHOTOS, PhotoReport,
-    calibrate_photos,
+    CalibrateAnswer, CalibrateError, CalibrateSetup, MAX_PHOTOS, MIN_PHOTOS, PhotoError,
+    PhotoReport, calibrate_photos,
 };
 pub use corners::{CornersAnswer, CornersError, estimate_corners};
 pub use frames::{InFrames, Localization, SiteFrames};
