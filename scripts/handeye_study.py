@@ -32,6 +32,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from rigid import angle_deg, rigid
+
 METHODS = {
     "TSAI": cv2.CALIB_HAND_EYE_TSAI,
     "PARK": cv2.CALIB_HAND_EYE_PARK,
@@ -42,25 +44,8 @@ METHODS = {
 ZXING_SHIFT_PX = -0.5
 
 
-def matrix(t):
-    """4 x 4 of {translation_mm, quaternion_wxyz}."""
-    w, x, y, z = t["quaternion_wxyz"]
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / n, x / n, y / n, z / n
-    r = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
-    m = np.eye(4)
-    m[:3, :3] = r
-    m[:3, 3] = t["translation_mm"]
-    return m
-
-
 def errors(est, true):
-    r = est[:3, :3] @ true[:3, :3].T
-    angle = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(r) - 1) / 2))))
+    angle = angle_deg(est[:3, :3], true[:3, :3])
     return angle, float(np.linalg.norm(est[:3, 3] - true[:3, 3]))
 
 
@@ -106,7 +91,7 @@ def board_pose(gray, k, d, corners_mm, truth_px):
 
 def project_truth(doc, view, k, d):
     """The board's inner corners in px from the truth (only to label the detected ones)."""
-    code = matrix(view["code_in_camera"])  # centre frame
+    code = rigid(view["code_in_camera"])  # centre frame
     half = doc["marker"]["size_mm"] / 2
     # Board frame as the marker's paper frame: top-left at (-l, 0), x right, y down; its
     # origin P2 sits at (+l/2, -l/2) from the centre in the centre frame.
@@ -143,7 +128,7 @@ def opencv_mounts(doc, poses, level, anchor):
     for view, p in zip(doc["views"], poses):
         if p[anchor] is None:
             continue
-        f = matrix(view["reported"][level])
+        f = rigid(view["reported"][level])
         if doc["setup"] == "eye_to_hand":
             f = np.linalg.inv(f)
         r_g.append(f[:3, :3]); t_g.append(f[:3, 3].reshape(3, 1))
@@ -172,7 +157,7 @@ def main():
     for path in sessions:
         doc = json.loads(path.read_text())
         poses = anchor_poses(doc, path.parent)
-        true = matrix(doc["mount"])
+        true = rigid(doc["mount"])
         for level in doc["qrpose"]:
             key = (doc["setup"], level)
             row = rows.setdefault(key, {"qrpose": [], "zxing": {}, "checkerboard": {}, "failed": 0,

@@ -23,7 +23,7 @@ symbol, which is qrpose's "qr" order (TL, TR, BR, BL = P3, P2, P1, P4); the trut
 frame (x right, y down the symbol, z into the face) turned half a turn about x, so the
 pose it returns is multiplied by diag(1, -1, -1) on the right.
 """
-import argparse, json, math, sys
+import argparse, json, sys
 from importlib.metadata import version
 from pathlib import Path
 
@@ -31,31 +31,12 @@ import cv2
 import numpy as np
 import zxingcpp
 
+from rigid import angle_deg, rigid
+
 MIRROR_DEG = 20.0
 ZXING_SHIFT_PX = -0.5
 # T_F'<-marker: IPPE_SQUARE's square frame from qrpose's centred marker frame.
 FLIP = np.diag([1.0, -1.0, -1.0])
-
-
-def rigid(spec):
-    """4x4 matrix of {translation_mm, quaternion_wxyz}."""
-    w, x, y, z = spec["quaternion_wxyz"]
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / n, x / n, y / n, z / n
-    r = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
-    m = np.eye(4)
-    m[:3, :3] = r
-    m[:3, 3] = spec["translation_mm"]
-    return m
-
-
-def angle_deg(r_a, r_b):
-    m = r_a.T @ r_b
-    return math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(m) - 1) / 2))))
 
 
 def pct(values, q):

@@ -119,6 +119,20 @@ async fn without_the_arms_pose_a_flange_camera_has_no_robot_frame_and_nothing_is
     assert!(body["object"]["pose_in_robot"].is_object(), "{body}");
 }
 
+/// Whether `reasons` names `reason`.
+fn has_reason(reasons: &Value, reason: &str) -> bool {
+    reasons
+        .as_array()
+        .expect("reasons")
+        .contains(&json!(reason))
+}
+
+/// `grasp` is not graspable, and `reason` is among its reasons.
+fn assert_refused_for(grasp: &Value, reason: &str) {
+    assert_eq!(grasp["graspable"], false, "{grasp}");
+    assert!(has_reason(&grasp["reasons"], reason), "{grasp}");
+}
+
 #[tokio::test]
 async fn each_reason_that_forbids_a_grasp_is_named() {
     let app = spawn_with_site("reasons").await;
@@ -129,38 +143,19 @@ async fn each_reason_that_forbids_a_grasp_is_named() {
     let top = &body["object"]["grasps"][0];
     let p = top["within_tolerance_probability"].as_f64().expect("p");
     assert!(p < 0.95, "p {p}");
-    assert_eq!(top["graspable"], false);
-    assert!(
-        top["reasons"]
-            .as_array()
-            .expect("reasons")
-            .contains(&json!("below_probability")),
-        "{top}"
-    );
+    assert_refused_for(top, "below_probability");
     // The same grasp passes a bar below its probability.
     loose["min_grasp_probability"] = json!(p / 2.0);
     let body = answer(&app, &loose).await;
     let reasons = &body["object"]["grasps"][0]["reasons"];
-    assert!(
-        !reasons
-            .as_array()
-            .expect("reasons")
-            .contains(&json!("below_probability")),
-        "{reasons}"
-    );
+    assert!(!has_reason(reasons, "below_probability"), "{reasons}");
     // Without a covariance (the paper's method) the probability is unknown.
     let mut paper = request(Some(&flange_pose()));
     paper["solver"] = json!({"method": "paper"});
     let body = answer(&app, &paper).await;
     let top = &body["object"]["grasps"][0];
     assert_eq!(top["within_tolerance_probability"], Value::Null);
-    assert_eq!(top["graspable"], false);
-    assert!(
-        top["reasons"]
-            .as_array()
-            .expect("reasons")
-            .contains(&json!("below_probability"))
-    );
+    assert_refused_for(top, "below_probability");
     // A code seen from afar, tilted by 15°, with noisy corners: its mirror fits as well.
     let tilt = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 15f64.to_radians());
     let far = Isometry3::from_parts(
@@ -174,14 +169,7 @@ async fn each_reason_that_forbids_a_grasp_is_named() {
     ambiguous["solver"] = json!({"method": "reprojection", "corner_sigma_px": 1.0});
     let body = answer(&app, &ambiguous).await;
     let top = &body["object"]["grasps"][0];
-    assert_eq!(top["graspable"], false, "{body}");
-    assert!(
-        top["reasons"]
-            .as_array()
-            .expect("reasons")
-            .contains(&json!("pose_ambiguous")),
-        "{top}"
-    );
+    assert_refused_for(top, "pose_ambiguous");
     // One corner measured 2 px off: the fit is worse than 0.1 px corners allow, and the
     // covariance (small as it is) cannot be trusted.
     let mut bent = request(Some(&flange_pose()));
@@ -189,14 +177,7 @@ async fn each_reason_that_forbids_a_grasp_is_named() {
     bent["corners_px"][2][0] = json!(u + 2.0);
     let body = answer(&app, &bent).await;
     let top = &body["object"]["grasps"][0];
-    assert_eq!(top["graspable"], false, "{body}");
-    assert!(
-        top["reasons"]
-            .as_array()
-            .expect("reasons")
-            .contains(&json!("high_reprojection_error")),
-        "{top}"
-    );
+    assert_refused_for(top, "high_reprojection_error");
     // A payload no rule matches has no object.
     let mut other = request(Some(&flange_pose()));
     other["payload"] = json!("LOC-7");

@@ -127,12 +127,7 @@ pub async fn calibrate(
     input: CalibrateInput,
 ) -> Result<JsonBytes, ApiError> {
     let limits = state.image_limits();
-    let pixels = input
-        .photos
-        .iter()
-        .map(|p| crate::app::admission_pixels(p, limits.decode.max_pixels))
-        .max()
-        .unwrap_or(0);
+    let pixels = input.admission_pixels(&limits);
     let json = state
         .queue
         .run_image(pixels, move |cancel| {
@@ -160,6 +155,18 @@ pub struct CalibrateInput {
     pub photos: Vec<Bytes>,
     /// The `request` part.
     pub request_json: Bytes,
+}
+
+impl CalibrateInput {
+    /// The pixel budget the photos take on a worker: that of the largest, since they are
+    /// decoded one at a time.
+    pub fn admission_pixels(&self, limits: &ImageLimits) -> u64 {
+        self.photos
+            .iter()
+            .map(|p| crate::app::admission_pixels(p, limits.decode.max_pixels))
+            .max()
+            .unwrap_or(0)
+    }
 }
 
 impl FromRequest<AppState> for CalibrateInput {

@@ -97,12 +97,7 @@ pub async fn calibrate_hand_eye(
 ) -> Result<JsonBytes, ApiError> {
     let limits = state.image_limits();
     let site = state.site.current();
-    let pixels = input
-        .photos
-        .iter()
-        .map(|p| crate::app::admission_pixels(p, limits.decode.max_pixels))
-        .max()
-        .unwrap_or(0);
+    let pixels = input.admission_pixels(&limits);
     let json = state
         .queue
         .run_image(pixels, move |cancel| {
