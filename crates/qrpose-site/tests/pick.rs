@@ -55,6 +55,15 @@ fn site() -> Site {
 
 /// The code 600 mm in front of the camera, turned a little, with a correlated covariance
 /// of the size a 40 mm code at that distance gets (0.2-0.5°, 0.5-3 mm).
+/// The pose of the site's camera `fixed` (mounted on the robot) in the robot frame.
+fn fixed_camera_in_robot(site: &Site) -> Option<PoseWithCovariance> {
+    let fixed = site
+        .camera("fixed")
+        .and_then(|c| c.camera_mount)
+        .expect("mount");
+    camera_in_robot(Some(&fixed), None)
+}
+
 fn marker_in_camera(scale: f64) -> PoseWithCovariance {
     let l = Matrix6::from_fn(|i, k| {
         let sd = [0.004, 0.006, 0.002, 0.6, 0.5, 2.5][i];
@@ -317,11 +326,7 @@ fn the_probability_matches_analytic_cases() {
 fn tiny_and_huge_covariances_give_one_and_zero() {
     let site = site();
     let (_, rule) = site.object_for("SKU-1").expect("a rule");
-    let fixed = site
-        .camera("fixed")
-        .and_then(|c| c.camera_mount)
-        .expect("mount");
-    let in_robot = camera_in_robot(Some(&fixed), None).expect("a robot mount");
+    let in_robot = fixed_camera_in_robot(&site).expect("a robot mount");
     let tiny = plan_pick(
         &marker_in_camera(1e-3),
         rule,
@@ -486,11 +491,7 @@ fn every_reason_is_given_when_it_applies() {
 fn the_minimum_probability_is_the_bar_and_is_checked() {
     let site = site();
     let (_, rule) = site.object_for("SKU-1").expect("a rule");
-    let fixed = site
-        .camera("fixed")
-        .and_then(|c| c.camera_mount)
-        .expect("mount");
-    let in_robot = camera_in_robot(Some(&fixed), None);
+    let in_robot = fixed_camera_in_robot(&site);
     let marker = marker_in_camera(1.3);
     let plan = plan_pick(&marker, rule, in_robot.as_ref(), &PickOptions::default()).expect("plan");
     let p = plan.grasps[0].within_tolerance_probability.expect("p");
@@ -525,11 +526,7 @@ fn the_minimum_probability_is_the_bar_and_is_checked() {
 fn a_pose_that_may_be_the_mirror_has_its_probability_discounted_and_is_not_graspable() {
     let site = site();
     let (_, rule) = site.object_for("SKU-1").expect("a rule");
-    let fixed = site
-        .camera("fixed")
-        .and_then(|c| c.camera_mount)
-        .expect("mount");
-    let in_robot = camera_in_robot(Some(&fixed), None);
+    let in_robot = fixed_camera_in_robot(&site);
     // A tight estimate: graspable on its own.
     let marker = marker_in_camera(0.05);
     let sure = plan_pick(&marker, rule, in_robot.as_ref(), &PickOptions::default()).expect("plan");
